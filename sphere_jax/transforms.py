@@ -10,15 +10,17 @@ Bases (orthonormal on S2; orthogonal on SO(3)), in the Wigner convention of :mod
 With these bases rotation is a matrix product on the first index: ``(L_R f)^ = D^l(R) f̂``,
 on S2 and on SO(3) alike (``(L_R f)(x) = f(R⁻¹x)``).
 
-Signals are real, so only half of each spectrum is stored (the rest follows from
-``f̂^l_{-m} = (-1)^m conj(f̂^l_m)`` and ``f̂^l_{-m,-n} = (-1)^{m-n} conj(f̂^l_{mn})``):
+Signals are real, so half of each spectrum is stored — the half that the real FFT over the last
+grid axis produces — and the rest follows from ``f̂^l_{-m} = (-1)^m conj(f̂^l_m)`` and
+``f̂^l_{-m,-n} = (-1)^{m-n} conj(f̂^l_{mn})``:
 
-* S2 coefficients:    complex64 ``[..., L(l), L(m ≥ 0), C]``
-* SO(3) coefficients: complex64 ``[..., L(l), L(m ≥ 0), 2L-1(n + L-1), C]``
+* S2 coefficients:    complex64 ``[..., L(l), L(m ≥ 0)]``
+* SO(3) coefficients: complex64 ``[..., L(l), 2L-1(m + L-1), L(n ≥ 0)]``
 
-zero where ``m > l`` or ``|n| > l``. Grids are channels last (:mod:`so3`). The forward transforms
-take ``lmax=L ≤ B`` and so change band limit by truncation; the inverse transforms take the output
-bandwidth ``B ≥ L``. All tables are float64 numpy constants cast to float32, cached per size.
+zero where ``|m| > l`` or ``n > l``. Grids are channels first (:mod:`so3`); every leading axis
+(batch, channel) is a batch axis here. The forward transforms take ``lmax=L ≤ B`` and so change
+band limit by truncation; the inverse transforms take the output bandwidth ``B ≥ L``.
+All tables are float64 numpy constants cast to float32, cached per size.
 """
 from __future__ import annotations
 
@@ -30,7 +32,8 @@ import jax.numpy as jnp
 from sphere_jax import so3, wigner
 
 
-def _check_sizes(b, lmax, name_b="bandwidth"):
+def check_sizes(b, lmax, name_b="bandwidth"):
+    """Validated ``(B, L)``; ``L`` defaults to ``B`` and may not exceed it."""
     b = so3.check_bandwidth(b, name_b)
     lmax = b if lmax is None else so3.check_bandwidth(lmax, "lmax")
     if lmax > b:
@@ -38,16 +41,31 @@ def _check_sizes(b, lmax, name_b="bandwidth"):
     return b, lmax
 
 
-def _check_grid(x, b_axes, name="x"):
-    """The grid bandwidth of ``x`` whose ``b_axes`` axes before the channel axis are all 2B."""
+def grid_bandwidth(x, grid_ndim, name="x"):
+    """Bandwidth B of ``x`` whose last ``grid_ndim`` axes must all be an even 2B."""
     shape = tuple(x.shape)
-    if len(shape) < b_axes + 1:
-        raise ValueError(f"{name} must have shape [..., {', '.join(['2B'] * b_axes)}, C], "
-                         f"got {shape}")
-    grid = shape[-1 - b_axes:-1]
-    if len(set(grid)) != 1 or grid[0] % 2:
-        raise ValueError(f"{name} grid axes must all equal an even 2B, got {grid} in {shape}")
+    form = ", ".join(["2B"] * grid_ndim)
+    if len(shape) < grid_ndim:
+        raise ValueError(f"{name} must have shape [..., {form}], got {shape}")
+    grid = shape[-grid_ndim:]
+    if len(set(grid)) != 1 or grid[0] % 2 or grid[0] == 0:
+        raise ValueError(f"{name} grid axes must all equal an even 2B > 0, got {grid} "
+                         f"in shape {shape} (expected [..., {form}])")
     return grid[0] // 2
+
+
+def coeffs_lmax(c, on_so3, name="coeffs"):
+    """Band limit L of an S2 ``[..., L, L]`` or SO(3) ``[..., L, 2L-1, L]`` coefficient array."""
+    s = tuple(c.shape)
+    if on_so3:
+        ok = len(s) >= 3 and s[-3] == s[-1] and s[-2] == 2 * s[-1] - 1
+        form = "[..., L, 2L-1, L]"
+    else:
+        ok = len(s) >= 2 and s[-2] == s[-1]
+        form = "[..., L, L]"
+    if not ok or s[-1] == 0:
+        raise ValueError(f"{name} must have shape {form}, got {s}")
+    return s[-1]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -56,26 +74,43 @@ def _check_grid(x, b_axes, name="x"):
 
 @functools.lru_cache(maxsize=None)
 def _s2_tables(b: int, lmax: int):
-    """Analysis ``[2B, L, L]`` (quadrature folded in) and synthesis ``[2B, L, L]`` tables."""
+    """Analysis and synthesis tables ``[L(m), 2B(j), L(l)]`` float32 (quadrature in analysis)."""
     d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[..., lmax - 1:, lmax - 1]  # [j, l, m≥0]
-    norm = np.sqrt((2 * np.arange(lmax) + 1) / (4 * np.pi))[None, :, None]
-    synth = norm * d
+    synth = d * np.sqrt((2 * np.arange(lmax) + 1) / (4 * np.pi))[None, :, None]
     analysis = synth * (so3.quadrature_weights(b) * (2 * np.pi / (2 * b)))[:, None, None]
-    return analysis.astype(np.float32), synth.astype(np.float32)
+    to_mjl = lambda t: np.ascontiguousarray(t.transpose(2, 0, 1)).astype(np.float32)
+    return to_mjl(analysis), to_mjl(synth)
 
 
 @functools.lru_cache(maxsize=None)
 def _so3_tables(b: int, lmax: int):
-    """Analysis and synthesis tables ``[2B(j), L(l), L(m≥0), 2L-1(n)]``, float32."""
-    d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[:, :, lmax - 1:, :]
+    """Analysis and synthesis tables ``[(2L-1)·L (m, n≥0), 2B(j), L(l)]``, float32."""
+    d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[..., lmax - 1:]          # [j, l, m, n≥0]
     scale = (2 * np.arange(lmax) + 1) / (8 * np.pi ** 2) * (2 * np.pi / (2 * b)) ** 2
     analysis = d * scale[None, :, None, None] * so3.quadrature_weights(b)[:, None, None, None]
-    return analysis.astype(np.float32), d.astype(np.float32)
+    to_qjl = lambda t: np.ascontiguousarray(
+        t.transpose(2, 3, 0, 1).reshape(-1, 2 * b, lmax)).astype(np.float32)
+    return to_qjl(analysis), to_qjl(d)
 
 
-def _complex_contract(spec: str, z, table):
-    """einsum of a complex array with a real table, as two real contractions."""
-    return jnp.einsum(spec, z.real, table) + 1j * jnp.einsum(spec, z.imag, table)
+def _beta_to_degree(f_xjq, table_qjl):
+    """``Σ_j f[x, j, q] T[q, j, l]`` -> ``[x, l, q]``, complex f, real T.
+
+    The Wigner-d step is a batched matmul over q = (m, n); laid out q-first it runs 4x faster
+    on CPU than the same einsum with q inner.
+    """
+    z = jnp.stack([f_xjq.real, f_xjq.imag], 0)                       # [2, x, j, q]
+    out = jnp.einsum("rxjq,qjl->qrxl", z, table_qjl)
+    out = out[:, 0] + 1j * out[:, 1]                                  # [q, x, l]
+    return jnp.transpose(out, (1, 2, 0))
+
+
+def _degree_to_beta(c_xlq, table_qjl):
+    """``Σ_l c[x, l, q] T[q, j, l]`` -> ``[x, j, q]``."""
+    z = jnp.stack([c_xlq.real, c_xlq.imag], 0)
+    out = jnp.einsum("rxlq,qjl->qrxj", z, table_qjl)
+    out = out[:, 0] + 1j * out[:, 1]
+    return jnp.transpose(out, (1, 2, 0))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -83,21 +118,24 @@ def _complex_contract(spec: str, z, table):
 # ----------------------------------------------------------------------------------------------
 
 def s2_fft(x, lmax=None):
-    """Real S2 signal ``[..., 2B(β), 2B(α), C]`` -> coefficients ``[..., L, L(m≥0), C]``."""
-    b, lmax = _check_sizes(_check_grid(x, 2), lmax)
+    """Real S2 signal ``[..., 2B(β), 2B(α)]`` -> coefficients ``[..., L, L(m≥0)]``."""
+    b, lmax = check_sizes(grid_bandwidth(x, 2), lmax)
     analysis, _ = _s2_tables(b, lmax)
-    f = jnp.fft.rfft(jnp.asarray(x, jnp.float32), axis=-2)[..., :lmax, :]   # e^{-imα}
-    return _complex_contract("...jmc,jlm->...lmc", f, analysis)
+    lead = x.shape[:-2]
+    f = jnp.fft.rfft(jnp.asarray(x, jnp.float32), axis=-1)[..., :lmax]   # Σ_α e^{-imα}
+    c = _beta_to_degree(f.reshape((-1, 2 * b, lmax)), analysis)
+    return c.reshape(lead + (lmax, lmax))
 
 
 def s2_ifft(coeffs, b=None):
-    """Coefficients ``[..., L, L, C]`` -> real S2 signal ``[..., 2B, 2B, C]`` (B ≥ L)."""
-    lmax = _check_coeffs(coeffs, 2)
-    b, lmax = _check_sizes(lmax if b is None else b, lmax)
+    """Coefficients ``[..., L, L]`` -> real S2 signal ``[..., 2B, 2B]`` (B ≥ L, default L)."""
+    lmax = coeffs_lmax(coeffs, False)
+    b, lmax = check_sizes(lmax if b is None else b, lmax)
     _, synth = _s2_tables(b, lmax)
-    g = _complex_contract("...lmc,jlm->...jmc", coeffs, synth)
-    g = jnp.pad(g, [(0, 0)] * (g.ndim - 2) + [(0, b + 1 - lmax), (0, 0)])
-    return jnp.fft.irfft(g, n=2 * b, axis=-2) * (2 * b)
+    lead = coeffs.shape[:-2]
+    g = _degree_to_beta(jnp.asarray(coeffs).reshape((-1, lmax, lmax)), synth)
+    g = jnp.pad(g, ((0, 0), (0, 0), (0, b + 1 - lmax)))
+    return (jnp.fft.irfft(g, n=2 * b, axis=-1) * (2 * b)).reshape(lead + (2 * b, 2 * b))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -105,88 +143,78 @@ def s2_ifft(coeffs, b=None):
 # ----------------------------------------------------------------------------------------------
 
 def so3_fft(x, lmax=None):
-    """Real SO(3) signal ``[..., 2B(β), 2B(α), 2B(γ), C]`` -> ``[..., L, L(m≥0), 2L-1, C]``."""
-    b, lmax = _check_sizes(_check_grid(x, 3), lmax)
+    """Real SO(3) signal ``[..., 2B(β), 2B(α), 2B(γ)]`` -> ``[..., L, 2L-1(m), L(n≥0)]``."""
+    b, lmax = check_sizes(grid_bandwidth(x, 3), lmax)
     analysis, _ = _so3_tables(b, lmax)
-    f = jnp.fft.fft(jnp.fft.rfft(jnp.asarray(x, jnp.float32), axis=-3)[..., :lmax, :, :],
-                    axis=-2)
-    # FFT bins n mod 2B -> n = -(L-1)..L-1
+    lead = x.shape[:-3]
+    f = jnp.fft.rfft2(jnp.asarray(x, jnp.float32))[..., :lmax]       # [..., j, m mod 2B, n≥0]
     f = jnp.concatenate([f[..., 2 * b - lmax + 1:, :], f[..., :lmax, :]], axis=-2)
-    return _complex_contract("...jmnc,jlmn->...lmnc", f, analysis)
+    c = _beta_to_degree(f.reshape((-1, 2 * b, (2 * lmax - 1) * lmax)), analysis)
+    return c.reshape(lead + (lmax, 2 * lmax - 1, lmax))
 
 
 def so3_ifft(coeffs, b=None):
-    """Coefficients ``[..., L, L, 2L-1, C]`` -> real SO(3) signal ``[..., 2B, 2B, 2B, C]``."""
-    lmax = _check_coeffs(coeffs, 3)
-    b, lmax = _check_sizes(lmax if b is None else b, lmax)
+    """Coefficients ``[..., L, 2L-1, L]`` -> real SO(3) signal ``[..., 2B, 2B, 2B]`` (B ≥ L)."""
+    lmax = coeffs_lmax(coeffs, True)
+    b, lmax = check_sizes(lmax if b is None else b, lmax)
     _, synth = _so3_tables(b, lmax)
-    g = _complex_contract("...lmnc,jlmn->...jmnc", coeffs, synth)
-    # n = -(L-1)..L-1 -> FFT bins of length 2B: [0..L-1, zeros, -(L-1)..-1]
-    zeros = jnp.zeros(g.shape[:-2] + (2 * b - 2 * lmax + 1, g.shape[-1]), g.dtype)
-    g = jnp.concatenate([g[..., lmax - 1:, :], zeros, g[..., :lmax - 1, :]], axis=-2)
-    g = jnp.fft.ifft(g, axis=-2)
-    g = jnp.pad(g, [(0, 0)] * (g.ndim - 3) + [(0, b + 1 - lmax), (0, 0), (0, 0)])
-    return jnp.fft.irfft(g, n=2 * b, axis=-3) * (2 * b) ** 2
-
-
-def _check_coeffs(c, kind_axes):
-    shape = tuple(c.shape)
-    if kind_axes == 2:
-        ok = len(shape) >= 3 and shape[-3] == shape[-2]
-        form = "[..., L, L, C]"
-    else:
-        ok = len(shape) >= 4 and shape[-4] == shape[-3] and shape[-2] == 2 * shape[-3] - 1
-        form = "[..., L, L, 2L-1, C]"
-    if not ok:
-        raise ValueError(f"coeffs must have shape {form}, got {shape}")
-    return shape[-1 - kind_axes]
+    lead = coeffs.shape[:-3]
+    g = _degree_to_beta(jnp.asarray(coeffs).reshape((-1, lmax, (2 * lmax - 1) * lmax)), synth)
+    g = g.reshape((-1, 2 * b, 2 * lmax - 1, lmax))
+    # m = -(L-1)..L-1 -> FFT bins of length 2B: [0..L-1, zeros, -(L-1)..-1]
+    zeros = jnp.zeros(g.shape[:2] + (2 * b - 2 * lmax + 1, lmax), g.dtype)
+    g = jnp.concatenate([g[:, :, lmax - 1:], zeros, g[:, :, :lmax - 1]], axis=2)
+    g = jnp.pad(g, ((0, 0), (0, 0), (0, 0), (0, b + 1 - lmax)))
+    x = jnp.fft.irfft2(g, s=(2 * b, 2 * b)) * (2 * b) ** 2
+    return x.reshape(lead + (2 * b,) * 3)
 
 
 # ----------------------------------------------------------------------------------------------
-# Spectral rotation
+# Real-signal symmetry and spectral rotation
 # ----------------------------------------------------------------------------------------------
 
-def _full_m(coeffs_half, m_axis, n_axis=None):
-    """Rebuild m = -(L-1)..L-1 from the stored m ≥ 0 half (real-signal symmetry)."""
-    lmax = coeffs_half.shape[m_axis]
-    m = np.arange(lmax)
-    neg = jnp.conj(jnp.flip(jnp.take(coeffs_half, np.arange(1, lmax), axis=m_axis), m_axis))
-    sign_m = (-1.0) ** np.arange(lmax - 1, 0, -1)    # (-1)^m for m = L-1..1
-    shape = [1] * coeffs_half.ndim
-    shape[m_axis] = lmax - 1
-    neg = neg * sign_m.reshape(shape)
-    if n_axis is not None:   # f̂_{-m,n} = (-1)^{m-n} conj(f̂_{m,-n}): flip n and sign (-1)^n too
-        neg = jnp.flip(neg, n_axis)
-        nshape = [1] * coeffs_half.ndim
-        nshape[n_axis] = 2 * lmax - 1
-        neg = neg * ((-1.0) ** np.arange(-(lmax - 1), lmax)).reshape(nshape)
-    del m
-    return jnp.concatenate([neg, coeffs_half], axis=m_axis)
+def s2_full_m(c):
+    """S2 half spectrum ``[..., L, L(m≥0)]`` -> full ``[..., L, 2L-1(m + L-1)]``."""
+    lmax = c.shape[-1]
+    sign = (-1.0) ** np.arange(lmax - 1, 0, -1)                       # (-1)^m, m = L-1..1
+    neg = jnp.conj(jnp.flip(c[..., 1:], -1)) * sign
+    return jnp.concatenate([neg, c], axis=-1)
+
+
+def so3_full_n(c):
+    """SO(3) half spectrum ``[..., L, 2L-1(m), L(n≥0)]`` -> full ``[..., L, 2L-1, 2L-1]``.
+
+    ``f̂_{m,-n} = (-1)^{m-n} conj(f̂_{-m,n})``.
+    """
+    lmax = c.shape[-1]
+    m = np.arange(-(lmax - 1), lmax)[:, None]
+    n = np.arange(lmax - 1, 0, -1)[None, :]                            # n = L-1..1
+    neg = jnp.conj(jnp.flip(c[..., 1:], (-2, -1))) * ((-1.0) ** (m - n))
+    return jnp.concatenate([neg, c], axis=-1)
+
+
+def _wigner_D_at(lmax, rot_33):
+    return wigner.wigner_D_jax(lmax, *so3.matrix_to_euler(rot_33))   # [l, m, m']
 
 
 def rotate_s2_coeffs(coeffs, rot_33):
-    """``(L_R f)^`` for S2 coefficients ``[..., L, L, C]`` and a rotation ``[3, 3]``."""
-    lmax = _check_coeffs(coeffs, 2)
-    d = wigner.wigner_D_jax(lmax, *so3.matrix_to_euler(rot_33))[:, lmax - 1:, :]  # [l, k≥0, m]
-    full = _full_m(coeffs, coeffs.ndim - 2)
-    return jnp.einsum("lkm,...lmc->...lkc", d, full)
+    """``(L_R f)^ = D(R) f̂`` for S2 coefficients ``[..., L, L]`` and a rotation ``[3, 3]``."""
+    lmax = coeffs_lmax(coeffs, False)
+    d = _wigner_D_at(lmax, rot_33)[:, lmax - 1:, :]                  # [l, k≥0, m]
+    return jnp.einsum("lkm,...lm->...lk", d, s2_full_m(coeffs))
 
 
 def rotate_so3_coeffs(coeffs, rot_33):
-    """``(L_R f)^`` for SO(3) coefficients ``[..., L, L, 2L-1, C]`` and a rotation ``[3, 3]``."""
-    lmax = _check_coeffs(coeffs, 3)
-    d = wigner.wigner_D_jax(lmax, *so3.matrix_to_euler(rot_33))[:, lmax - 1:, :]
-    full = _full_m(coeffs, coeffs.ndim - 3, coeffs.ndim - 2)
-    return jnp.einsum("lkm,...lmnc->...lknc", d, full)
+    """``(L_R f)^ = D(R) f̂`` for SO(3) coefficients ``[..., L, 2L-1, L]``, rotation ``[3, 3]``."""
+    lmax = coeffs_lmax(coeffs, True)
+    return jnp.einsum("lkm,...lmn->...lkn", _wigner_D_at(lmax, rot_33), coeffs)
 
 
 def rotate_s2(x, rot_33):
-    """Rotate a band-limited S2 signal ``[..., 2B, 2B, C]``: ``x(R⁻¹ ·)``."""
-    b = _check_grid(x, 2)
-    return s2_ifft(rotate_s2_coeffs(s2_fft(x), rot_33), b)
+    """Rotate a band-limited S2 signal ``[..., 2B, 2B]``: returns ``x(R⁻¹ ·)``."""
+    return s2_ifft(rotate_s2_coeffs(s2_fft(x), rot_33), grid_bandwidth(x, 2))
 
 
 def rotate_so3(x, rot_33):
-    """Rotate a band-limited SO(3) signal ``[..., 2B, 2B, 2B, C]``: ``x(R⁻¹ ·)``."""
-    b = _check_grid(x, 3)
-    return so3_ifft(rotate_so3_coeffs(so3_fft(x), rot_33), b)
+    """Rotate a band-limited SO(3) signal ``[..., 2B, 2B, 2B]``: returns ``x(R⁻¹ ·)``."""
+    return so3_ifft(rotate_so3_coeffs(so3_fft(x), rot_33), grid_bandwidth(x, 3))
