@@ -218,3 +218,11 @@ def rotate_s2(x, rot_33):
 def rotate_so3(x, rot_33):
     """Rotate a band-limited SO(3) signal ``[..., 2B, 2B, 2B]``: returns ``x(R⁻¹ ·)``."""
     return so3_ifft(rotate_so3_coeffs(so3_fft(x), rot_33), grid_bandwidth(x, 3))
+
+
+def so3_haar_mean(x):
+    """Haar mean ``[...]`` of SO(3) signals ``[..., 2B, 2B, 2B]``: exact for band-B signals and
+    invariant under rotation of the signal (the invariant pooling of the spherical CNNs)."""
+    b = grid_bandwidth(x, 3)
+    w = jnp.asarray(so3.haar_weights(b), jnp.float32)
+    return jnp.einsum("...jag,j->...", x, w)

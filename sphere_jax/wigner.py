@@ -96,17 +96,3 @@ def wigner_D_jax(lmax: int, alpha, beta, gamma):
     d = wigner_d_jax(lmax, beta)
     return ea[..., None, :, None] * d * eg[..., None, None, :]
 
-
-def wigner_d_explicit(l: int, m: int, n: int, beta: float) -> float:
-    """Wigner's closed-form sum for ``d^l_{mn}(β)``: slow, cancellation-prone for large l.
-
-    Kept as the independent reference that the tests compare the tables against at small l.
-    """
-    from math import comb, cos, sin, sqrt, factorial
-    total = 0.0
-    for s in range(max(0, n - m), min(l + n, l - m) + 1):
-        total += ((-1) ** (m - n + s) * cos(beta / 2) ** (2 * l + n - m - 2 * s)
-                  * sin(beta / 2) ** (m - n + 2 * s)
-                  / (factorial(l + n - s) * factorial(s) * factorial(m - n + s)
-                     * factorial(l - m - s)))
-    return sqrt(factorial(l + m) * factorial(l - m) * factorial(l + n) * factorial(l - n)) * total

@@ -1,0 +1,168 @@
+"""Slow, direct NumPy references (float64) that the fast JAX code is compared against.
+
+Everything here is written from the definitions, independently of the tables and FFTs under
+test: Wigner's closed-form sum for d, and synthesis / correlation as explicit sums.
+"""
+from __future__ import annotations
+
+from math import cos, factorial, sin, sqrt
+
+import numpy as np
+
+from sphere_jax import so3, wigner
+
+
+def wigner_d_explicit(l: int, m: int, n: int, beta: float) -> float:
+    """Wigner's closed-form sum for ``d^l_{mn}(β)`` (cancellation-prone for large l)."""
+    total = 0.0
+    for s in range(max(0, n - m), min(l + n, l - m) + 1):
+        total += ((-1) ** (m - n + s) * cos(beta / 2) ** (2 * l + n - m - 2 * s)
+                  * sin(beta / 2) ** (m - n + 2 * s)
+                  / (factorial(l + n - s) * factorial(s) * factorial(m - n + s)
+                     * factorial(l - m - s)))
+    return sqrt(factorial(l + m) * factorial(l - m) * factorial(l + n) * factorial(l - n)) * total
+
+
+def wigner_d_explicit_table(lmax: int, betas) -> np.ndarray:
+    """``[len(betas), L, 2L-1, 2L-1]`` from the closed form."""
+    betas = np.asarray(betas, np.float64)
+    out = np.zeros((len(betas), lmax, 2 * lmax - 1, 2 * lmax - 1))
+    for i, b in enumerate(betas):
+        for l in range(lmax):
+            for m in range(-l, l + 1):
+                for n in range(-l, l + 1):
+                    out[i, l, m + lmax - 1, n + lmax - 1] = wigner_d_explicit(l, m, n, b)
+    return out
+
+
+# ---- random band-limited coefficients of real signals (half spectra, as transforms stores) --
+
+def random_s2_coeffs(rng, lead, lmax):
+    c = rng.normal(size=lead + (lmax, lmax)) + 1j * rng.normal(size=lead + (lmax, lmax))
+    c[..., 0] = c[..., 0].real                                     # f̂_{l0} is real
+    l, m = np.arange(lmax)[:, None], np.arange(lmax)[None, :]
+    return c * (m <= l)
+
+
+def random_so3_coeffs(rng, lead, lmax):
+    shape = lead + (lmax, 2 * lmax - 1, lmax)
+    c = rng.normal(size=shape) + 1j * rng.normal(size=shape)
+    m = np.arange(-(lmax - 1), lmax)
+    # n = 0 column: f̂_{-m,0} = (-1)^m conj(f̂_{m,0}), so f̂_{00} is real.
+    pos = c[..., lmax - 1:, 0]
+    c[..., :lmax - 1, 0] = (np.conj(pos[..., 1:]) * (-1.0) ** m[lmax:])[..., ::-1]
+    c[..., lmax - 1, 0] = c[..., lmax - 1, 0].real
+    l = np.arange(lmax)[:, None, None]
+    n = np.arange(lmax)[None, None, :]
+    return c * ((np.abs(m)[None, :, None] <= l) & (n <= l))
+
+
+def full_s2(c):
+    """Half -> full ``[..., L, 2L-1]`` by ``f̂_{-m} = (-1)^m conj f̂_m``."""
+    lmax = c.shape[-1]
+    out = np.zeros(c.shape[:-1] + (2 * lmax - 1,), complex)
+    for m in range(lmax):
+        out[..., lmax - 1 + m] = c[..., m]
+        out[..., lmax - 1 - m] = (-1) ** m * np.conj(c[..., m])
+    return out
+
+
+def full_so3(c):
+    """Half -> full ``[..., L, 2L-1, 2L-1]`` by ``f̂_{-m,-n} = (-1)^{m-n} conj f̂_{mn}``."""
+    lmax = c.shape[-1]
+    out = np.zeros(c.shape[:-1] + (2 * lmax - 1,), complex)
+    out[..., lmax - 1:] = c
+    for m in range(-(lmax - 1), lmax):
+        for n in range(1, lmax):
+            out[..., lmax - 1 - m, lmax - 1 - n] = (-1) ** (m - n) * np.conj(
+                c[..., lmax - 1 + m, n])
+    return out
+
+
+# ---- direct synthesis at arbitrary points ----------------------------------------------------
+
+def s2_eval(c, beta, alpha):
+    """``f(β, α) = Σ f̂^l_m Y^l_m`` at points ``[P]``: returns ``[..., P]`` (real)."""
+    lmax = c.shape[-1]
+    full = full_s2(np.asarray(c, complex))
+    d = wigner.wigner_d_dense(lmax, beta)[..., lmax - 1]                 # [P, l, m] = d_{m0}
+    m = np.arange(-(lmax - 1), lmax)
+    y = d * np.sqrt((2 * np.arange(lmax) + 1) / (4 * np.pi))[:, None] * np.exp(
+        1j * m * np.asarray(alpha)[:, None, None])
+    return np.einsum("...lm,plm->...p", full, y).real
+
+
+def so3_eval(c, alpha, beta, gamma):
+    """``f(R) = Σ f̂^l_{mn} conj D^l_{mn}(R)`` at rotations ``[P]``: returns ``[..., P]``."""
+    lmax = c.shape[-1]
+    full = full_so3(np.asarray(c, complex))
+    dd = np.zeros((len(alpha), lmax, 2 * lmax - 1, 2 * lmax - 1), complex)
+    for l in range(lmax):
+        s = slice(lmax - 1 - l, lmax + l)
+        dd[:, l, s, s] = wigner.wigner_D(l, alpha, beta, gamma)
+    return np.einsum("...lmn,plmn->...p", full, dd.conj()).real
+
+
+def s2_synth_grid(c, b, d_table=None):
+    """Direct synthesis on the 2B×2B grid using closed-form d (or a given table)."""
+    lmax = c.shape[-1]
+    beta, alpha = so3.s2_grid(b)
+    if d_table is None:
+        d_table = wigner_d_explicit_table(lmax, so3.grid_beta(b))
+    full = full_s2(np.asarray(c, complex))
+    m = np.arange(-(lmax - 1), lmax)
+    norm = np.sqrt((2 * np.arange(lmax) + 1) / (4 * np.pi))
+    y = (d_table[:, :, :, lmax - 1] * norm[:, None])[:, None] * np.exp(
+        1j * m * so3.grid_alpha(b)[:, None, None])[None]                # [j, a, l, m]
+    return np.einsum("...lm,jalm->...ja", full, y).real
+
+
+def so3_synth_grid(c, b, d_table=None):
+    """Direct synthesis on the 2B×2B×2B grid with closed-form d."""
+    lmax = c.shape[-1]
+    if d_table is None:
+        d_table = wigner_d_explicit_table(lmax, so3.grid_beta(b))
+    full = full_so3(np.asarray(c, complex))
+    m = np.arange(-(lmax - 1), lmax)
+    e = np.exp(1j * m[None, :] * so3.grid_alpha(b)[:, None])           # conj(e^{-imα})
+    return np.einsum("...lmn,jlmn,am,gn->...jag", full, d_table, e, e, optimize=True).real
+
+
+# ---- direct correlation ----------------------------------------------------------------------
+
+def correlate_direct(eval_fn, c_in, w, grid, b_out):
+    """``h_d(R) = Σ_{g, c} w[g, c, d] f_c(R g)`` on the output SO(3) grid, by direct evaluation.
+
+    ``eval_fn(c, rotations [P, 3, 3]) -> [..., P]`` evaluates the input signal; c_in is
+    ``[C, ...]`` coefficients, w is ``[*grid.shape, C, D]``.
+    """
+    out_rot = so3.so3_grid_matrices(b_out).reshape(-1, 3, 3)           # [Q, 3, 3]
+    g_rot = so3.euler_to_matrix_np(*(a.ravel() for a in grid.points()))  # [G, 3, 3]
+    rot = np.einsum("qij,gjk->qgik", out_rot, g_rot).reshape(-1, 3, 3)
+    vals = eval_fn(c_in, rot).reshape(c_in.shape[0], len(out_rot), len(g_rot))  # [C, Q, G]
+    h = np.einsum("cqg,gcd->dq", vals, w.reshape(len(g_rot), *w.shape[-2:]))
+    return h.reshape((-1,) + (2 * b_out,) * 3)
+
+
+def s2_eval_rot(c, rot):
+    """Evaluate S2 coefficients at the points ``R ẑ``."""
+    z = rot[:, :, 2]
+    beta = np.arccos(np.clip(z[:, 2], -1, 1))
+    alpha = np.arctan2(z[:, 1], z[:, 0])
+    return s2_eval(c, beta, alpha)
+
+
+def so3_eval_rot(c, rot):
+    return so3_eval(c, *(np.asarray(a) for a in _matrix_to_euler_np(rot)))
+
+
+def _matrix_to_euler_np(rot):
+    beta = np.arccos(np.clip(rot[:, 2, 2], -1, 1))
+    alpha = np.arctan2(rot[:, 1, 2], rot[:, 0, 2])
+    gamma = np.arctan2(rot[:, 2, 1], -rot[:, 2, 0])
+    # Near the poles only α ± γ is defined; take γ = 0.
+    pole = np.abs(np.sin(beta)) < 1e-9
+    sign = np.where(rot[:, 2, 2] > 0, 1.0, -1.0)                      # β = 0 or β = π
+    alpha = np.where(pole, np.arctan2(sign * rot[:, 1, 0], sign * rot[:, 0, 0]), alpha)
+    gamma = np.where(pole, 0.0, gamma)
+    return alpha, beta, gamma

@@ -1,0 +1,79 @@
+import numpy as np
+import jax
+import jax.numpy as jnp
+import pytest
+
+from sphere_jax import correlation, layers, so3, transforms
+from tests import reference
+
+
+def rel_err(a, b):
+    return float(jnp.linalg.norm(a - b) / jnp.linalg.norm(b))
+
+
+@pytest.mark.parametrize("b_in, b_out", [(8, 8), (16, 16), (16, 12)])
+@pytest.mark.parametrize("on_so3", [False, True])
+def test_layer_equivariance(on_so3, b_in, b_out):
+    rng = np.random.default_rng(b_in + b_out)
+    cls = layers.SO3Conv if on_so3 else layers.S2Conv
+    if on_so3:
+        x = transforms.so3_ifft(reference.random_so3_coeffs(rng, (2, 3), b_in), b_in)
+        rotate_in = transforms.rotate_so3
+    else:
+        x = transforms.s2_ifft(reference.random_s2_coeffs(rng, (2, 3), b_in), b_in)
+        rotate_in = transforms.rotate_s2
+    model = cls(features=4, b_in=b_in, b_out=b_out)
+    params = model.init(jax.random.PRNGKey(0), x)
+    apply = jax.jit(model.apply)
+    for seed in range(2):
+        rot = so3.random_rotation(jax.random.PRNGKey(10 + seed))
+        lhs = apply(params, rotate_in(x, rot))
+        rhs = transforms.rotate_so3(apply(params, x), rot)
+        assert rel_err(lhs, rhs) < 1e-4
+
+
+def test_activations_keep_unit_order_through_five_layers():
+    """LEAD-shaped stack (S2Conv + 4 SO3Conv, ReLU between) at reduced bandwidths."""
+    rng = np.random.default_rng(0)
+    bands = (10, 8, 6, 5, 4, 3)
+    x = transforms.s2_ifft(reference.random_s2_coeffs(rng, (8, 4), 6), bands[0])
+    x = x / jnp.std(x)
+    h = x
+    for i in range(5):
+        cls = layers.S2Conv if i == 0 else layers.SO3Conv
+        model = cls(features=40, b_in=bands[i], b_out=bands[i + 1])
+        h = model.apply(model.init(jax.random.PRNGKey(i), h), h)
+        rms = float(jnp.sqrt(jnp.mean(h ** 2)))
+        assert 0.3 < rms < 3.0, f"layer {i}: rms {rms}"
+        h = jax.nn.relu(h)
+
+
+def test_batch_norm_and_haar_pool():
+    x = 3.0 + 2.0 * jax.random.normal(jax.random.PRNGKey(0), (4, 5, 6, 6, 6))
+    bn = layers.GridBatchNorm()
+    variables = bn.init(jax.random.PRNGKey(1), x, train=True)
+    y, updates = bn.apply(variables, x, train=True, mutable=["batch_stats"])
+    per_channel = jnp.moveaxis(y, 1, 0).reshape(5, -1)
+    assert float(jnp.abs(per_channel.mean(1)).max()) < 1e-4
+    assert float(jnp.abs(per_channel.std(1) - 1).max()) < 1e-3
+    assert updates["batch_stats"]["BatchNorm_0"]["mean"].shape == (5,)
+    assert layers.haar_pool(x).shape == (4, 5)
+
+
+def test_gradients_are_finite():
+    x = jax.random.normal(jax.random.PRNGKey(0), (2, 3, 8, 8, 8))
+    model = layers.SO3Conv(features=2, b_in=4, b_out=3)
+    params = model.init(jax.random.PRNGKey(1), x)
+    grads = jax.grad(lambda p: jnp.sum(model.apply(p, x) ** 2))(params)
+    assert all(bool(jnp.all(jnp.isfinite(g))) for g in jax.tree_util.tree_leaves(grads))
+
+
+def test_bad_inputs():
+    x = jnp.zeros((2, 3, 8, 8, 8))
+    with pytest.raises(ValueError, match="expects b_in=6"):
+        layers.SO3Conv(features=2, b_in=6, b_out=4).init(jax.random.PRNGKey(0), x)
+    with pytest.raises(ValueError, match="b_out=5 > b_in=4"):
+        layers.SO3Conv(features=2, b_in=4, b_out=5).init(jax.random.PRNGKey(0), x)
+    s2_grid = correlation.make_grid("near_identity", on_so3=False)
+    with pytest.raises(ValueError, match="needs an SO\\(3\\) grid"):
+        layers.SO3Conv(features=2, b_in=4, b_out=4, grid=s2_grid).init(jax.random.PRNGKey(0), x)
