@@ -126,12 +126,16 @@ def _s2_kernel_table(grid: KernelGrid, lmax: int):
 
 
 def s2_kernel_spectrum(w, grid: KernelGrid, lmax: int):
-    """Weights ``[n_β, n_α, C, D]`` -> ``Z^l_n`` complex64 ``[L, L(n≥0), C, D]``."""
+    """Weights ``[n_β, n_α, C, D]`` -> ``Z^l_n = Σ_g w_g Y^l_n(g)`` as the real block matrix
+    ``[L(l), 2(s), C, 2(r), L(n≥0), D]`` that multiplies (re, im) of the input into (re, im) of
+    the output: ``[[Re Z, Im Z], [-Im Z, Re Z]]``."""
     _check_weights(w, grid)
     c, d = w.shape[-2:]
-    z = (_s2_kernel_table(grid, lmax) @ w.reshape(grid.size, c * d)).reshape(
+    z = (_s2_kernel_table(grid, lmax) @ jnp.reshape(w, (grid.size, c * d))).reshape(
         lmax, 2, lmax, c, d)
-    return z[:, 0] + 1j * z[:, 1]
+    z = jnp.transpose(z, (0, 3, 1, 2, 4))                                     # [l, C, r, n, D]
+    swapped = jnp.stack([-z[:, :, 1], z[:, :, 0]], 2)
+    return jnp.stack([z, swapped], 1)
 
 
 @functools.lru_cache(maxsize=None)
@@ -152,7 +156,7 @@ def so3_kernel_spectrum(w, grid: KernelGrid, lmax: int) -> list:
     ``[2l+1 (k), 2 (re/im), l+1 (n ≥ 0), C, D]`` of ``W^l_{kn} = Σ_g w_g conj D^l_{nk}(g)``."""
     _check_weights(w, grid)
     c, d = w.shape[-2:]
-    rows = _so3_kernel_table(grid, lmax) @ w.reshape(grid.size, c * d)
+    rows = _so3_kernel_table(grid, lmax) @ jnp.reshape(w, (grid.size, c * d))
     out, start = [], 0
     for l in range(lmax):
         size = (2 * l + 1) * 2 * (l + 1)
@@ -172,36 +176,56 @@ def _check_weights(w, grid: KernelGrid):
 # Per-degree products
 # ----------------------------------------------------------------------------------------------
 
-def s2_spectral_product(f_hat, z):
-    """S2 coefficients ``[N, C, L, L(m≥0)]`` × ``Z [L, L(n≥0), C, D]`` -> SO(3) coefficients
-    ``[N, D, L, 2L-1(m), L(n≥0)]``: ``h^l_{mn} = Σ_c f̂^l_m Z^l_n``.
+def _full_m(f, lmax):
+    """S2 spectrum ``[L(m≥0), ...(l), 2, ...]`` -> ``[2L-1(m), ...]`` by
+    ``f̂_{-m} = (-1)^m conj f̂_m`` (re/im on axis 2)."""
+    sign = (-1.0) ** np.arange(lmax - 1, 0, -1)                       # m = L-1..1
+    conj = np.array([1.0, -1.0])
+    neg = jnp.flip(f[1:], 0) * (sign[:, None, None, None, None] * conj[None, None, :, None, None])
+    return jnp.concatenate([neg, f], 0)
 
-    Dense over the padded (m, n) square (~4x the useful flops), which is cheap with C = 4.
+
+def s2_spectral_product(f, zb):
+    """S2 spectra ``[L(m≥0), L(l), 2, N, C]`` × kernel blocks ``[L, 2, C, 2, L, D]`` -> SO(3)
+    spectra ``[2L-1(m), L(n≥0), L(l), 2, N, D]``: ``h^l_{mn} = Σ_c f̂^l_m Z^l_n``.
+
+    One product with contraction over (re/im, C), dense over all degrees (zeros where
+    |m| > l are carried along: with C = 4 the step is memory bound, not flop bound).
     """
-    return jnp.einsum("xclm,lncd->xdlmn", transforms.s2_full_m(f_hat), z)
+    lmax = f.shape[0]
+    return jnp.einsum("mlsxc,lscrnd->mnlrxd", _full_m(f, lmax), zb)
 
 
-def so3_spectral_product(f_hat, w_list):
-    """SO(3) coefficients ``[N, C, L, 2L-1(m), L(k≥0)]`` × per-degree ``W^l`` ->
-    ``[N, D, L, 2L-1(m), L(n≥0)]``: ``h^l_{mn} = Σ_{k,c} f̂^l_{mk} W^l_{kn}``.
+def _full_k(f_l, l):
+    """``[2l+1(m), l+1(k≥0), 2, N, C]`` -> ``[2l+1(m), 2l+1(k), 2, N, C]`` by
+    ``f̂_{m,-k} = (-1)^{m-k} conj f̂_{-m,k}``."""
+    if l == 0:
+        return f_l
+    m = np.arange(-l, l + 1)[:, None]
+    k = np.arange(l, 0, -1)[None, :]                                   # k = -l..-1 -> |k|
+    sign = ((-1.0) ** (m - k))[:, :, None] * np.array([1.0, -1.0])[None, None, :]
+    neg = jnp.flip(f_l[:, 1:], (0, 1)) * sign[..., None, None]
+    return jnp.concatenate([neg, f_l], 1)
 
-    Degree l is one real GEMM ``[2(2l+1)N, (2l+1)C] @ [(2l+1)C, 2(l+1)D]``: real and
-    imaginary parts stacked on the rows of one operand and the columns of the other.
+
+def so3_spectral_product(f, w_list):
+    """SO(3) spectra ``[2L-1(m), L(k≥0), L(l), 2, N, C]`` × per-degree ``W^l`` -> spectra
+    ``[2L-1(m), L(n≥0), L(l), 2, N, D]``: ``h^l_{mn} = Σ_{k,c} f̂^l_{mk} W^l_{kn}``.
+
+    Degree l is one real GEMM ``[2(2l+1)N, (2l+1)C] @ [(2l+1)C, 2(l+1)D]``: real and imaginary
+    parts of the input stacked on the rows, those of the kernel on the columns; the four
+    partial products are combined after.
     """
-    n, c, lmax = f_hat.shape[0], f_hat.shape[1], f_hat.shape[-1]
-    full = transforms.so3_full_n(f_hat)                                 # [N, C, l, m, k]
-    full = jnp.transpose(full, (2, 3, 0, 4, 1))                         # [l, m, N, k, C]
-    stacked = jnp.stack([full.real, full.imag], 0)                      # [2, l, m, N, k, C]
+    lmax = f.shape[1]
     out = []
     for l, w_l in enumerate(w_list):
-        s = slice(lmax - 1 - l, lmax + l)
-        a = stacked[:, l, s, :, s, :]                                   # [2, m, N, k, C]
-        d = w_l.shape[-1]
-        h = jnp.einsum("rmxkc,kpncd->rmxpnd", a, w_l)                   # [2, m, N, 2, n, D]
-        h = (h[0, :, :, 0] - h[1, :, :, 1]) + 1j * (h[0, :, :, 1] + h[1, :, :, 0])
-        out.append(jnp.pad(h, ((lmax - 1 - l,) * 2, (0, 0), (0, lmax - 1 - l), (0, 0))))
-    h = jnp.stack(out, 0)                                               # [l, m, N, n, D]
-    return jnp.transpose(h, (2, 4, 0, 1, 3))
+        pad = lmax - 1 - l
+        f_l = _full_k(f[pad:lmax + l, :l + 1, l], l)                   # [m, k, s, N, C]
+        o = jnp.einsum("mksxc,ktncd->smxtnd", f_l, w_l)
+        h = jnp.stack([o[0, :, :, 0] - o[1, :, :, 1], o[0, :, :, 1] + o[1, :, :, 0]], 2)
+        h = jnp.transpose(h, (0, 3, 2, 1, 4))                           # [m, n, r, N, D]
+        out.append(jnp.pad(h, ((pad, pad), (0, pad), (0, 0), (0, 0), (0, 0))))
+    return jnp.stack(out, 2)
 
 
 def product_flops(kind: str, batch: int, lmax: int, c_in: int, c_out: int) -> int:
@@ -227,26 +251,35 @@ def _check_channels(x, w, grid_ndim):
                          f"{', '.join(['2B'] * grid_ndim)}], got {tuple(x.shape)}")
 
 
+def _spectral_correlate(x, w, grid, b_out, on_so3):
+    grid_ndim = 3 if on_so3 else 2
+    b_in = transforms.grid_bandwidth(x, grid_ndim)
+    _check_channels(x, w, grid_ndim)
+    _check_band_change(b_in, b_out)
+    xf, lead = _flatten_batch(jnp.asarray(x, jnp.float32), grid_ndim + 1)
+    n, c = xf.shape[:2]
+    grid_shape = xf.shape[2:]
+    x_flat = xf.reshape((n * c,) + grid_shape)
+    if on_so3:
+        f = transforms.so3_analysis(x_flat, b_out)
+        h = so3_spectral_product(f.reshape(f.shape[:-1] + (n, c)),
+                                 so3_kernel_spectrum(w, grid, b_out))
+    else:
+        f = transforms.s2_analysis(x_flat, b_out)
+        h = s2_spectral_product(f.reshape(f.shape[:-1] + (n, c)),
+                                s2_kernel_spectrum(w, grid, b_out))
+    y = transforms.so3_synthesis(h.reshape(h.shape[:-2] + (-1,)), b_out)
+    return y.reshape(lead + (w.shape[-1],) + (2 * b_out,) * 3)
+
+
 def s2_correlate(x, w, grid: KernelGrid, b_out: int):
     """S2 signals ``[..., C, 2B_in, 2B_in]`` -> SO(3) ``[..., D, 2B_out, 2B_out, 2B_out]``."""
-    b_in = transforms.grid_bandwidth(x, 2)
-    _check_channels(x, w, 2)
-    _check_band_change(b_in, b_out)
-    xf, lead = _flatten_batch(jnp.asarray(x, jnp.float32), 3)
-    h = s2_spectral_product(transforms.s2_fft(xf, b_out), s2_kernel_spectrum(w, grid, b_out))
-    y = transforms.so3_ifft(h, b_out)
-    return y.reshape(lead + y.shape[1:])
+    return _spectral_correlate(x, w, grid, b_out, on_so3=False)
 
 
 def so3_correlate(x, w, grid: KernelGrid, b_out: int):
     """SO(3) signals ``[..., C, 2B_in, 2B_in, 2B_in]`` -> ``[..., D, 2B_out, 2B_out, 2B_out]``."""
-    b_in = transforms.grid_bandwidth(x, 3)
-    _check_channels(x, w, 3)
-    _check_band_change(b_in, b_out)
-    xf, lead = _flatten_batch(jnp.asarray(x, jnp.float32), 4)
-    h = so3_spectral_product(transforms.so3_fft(xf, b_out), so3_kernel_spectrum(w, grid, b_out))
-    y = transforms.so3_ifft(h, b_out)
-    return y.reshape(lead + y.shape[1:])
+    return _spectral_correlate(x, w, grid, b_out, on_so3=True)
 
 
 def _check_band_change(b_in, b_out):
