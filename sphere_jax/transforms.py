@@ -238,18 +238,6 @@ def s2_full_m(c):
     return jnp.concatenate([neg, c], axis=-1)
 
 
-def so3_full_n(c):
-    """SO(3) half spectrum ``[..., L, 2L-1(m), L(n≥0)]`` -> full ``[..., L, 2L-1, 2L-1]``.
-
-    ``f̂_{m,-n} = (-1)^{m-n} conj(f̂_{-m,n})``.
-    """
-    lmax = c.shape[-1]
-    m = np.arange(-(lmax - 1), lmax)[:, None]
-    n = np.arange(lmax - 1, 0, -1)[None, :]                            # n = L-1..1
-    neg = jnp.conj(jnp.flip(c[..., 1:], (-2, -1))) * ((-1.0) ** (m - n))
-    return jnp.concatenate([neg, c], axis=-1)
-
-
 def _wigner_D_at(lmax, rot_33):
     return wigner.wigner_D_jax(lmax, *so3.matrix_to_euler(rot_33))   # [l, m, m']
 
