@@ -1,0 +1,115 @@
+"""Keypoints and local patches (numpy; open3d only for ISS).
+
+A patch is what :func:`sphere_jax.signal.patch_signal` consumes: N points drawn with replacement
+from the neighbours within a radius of a keypoint, the keypoint itself excluded, in coordinates
+relative to the keypoint.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from sklearn.neighbors import KDTree
+
+
+def _check_cloud(points, name="points"):
+    points = np.asarray(points)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"{name} must be [N, 3], got {points.shape}")
+    if len(points) == 0:
+        raise ValueError(f"{name} is empty")
+    if not np.all(np.isfinite(points)):
+        raise ValueError(f"{name} has {int(np.sum(~np.isfinite(points).all(1)))} non-finite "
+                         f"point(s)")
+    return points
+
+
+def voxel_downsample(points, voxel, return_index=False):
+    """One point per occupied voxel of side ``voxel``: the centroid of the voxel's points
+    (``return_index=True``: the index of the point nearest that centroid instead, so
+    colours/normals can follow)."""
+    points = _check_cloud(points)
+    if not voxel > 0:
+        raise ValueError(f"voxel must be > 0, got {voxel}")
+    cells = np.floor((points - points.min(0)) / voxel).astype(np.int64)
+    keys = np.ravel_multi_index(cells.T, tuple(cells.max(0) + 1))   # one int per voxel: fast
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    centroid = np.zeros((len(counts), 3))
+    np.add.at(centroid, inverse, points)
+    centroid /= counts[:, None]
+    if not return_index:
+        return centroid.astype(np.float32)
+    dist = np.linalg.norm(points - centroid[inverse], axis=1)
+    order = np.lexsort((dist, inverse))                     # by voxel, then distance
+    first = np.ones(len(order), bool)
+    first[1:] = inverse[order][1:] != inverse[order][:-1]
+    return order[first]
+
+
+def uniform_keypoints(points, leaf):
+    """Indices of one keypoint per voxel of side ``leaf`` (the point nearest each voxel's
+    centroid): an even spread, e.g. one every 10 cm."""
+    return voxel_downsample(points, leaf, return_index=True)
+
+
+def random_keypoints(points, n, rng: np.random.Generator):
+    """``n`` distinct random indices (all of them if the cloud is smaller)."""
+    points = _check_cloud(points)
+    return np.sort(rng.choice(len(points), size=min(n, len(points)), replace=False))
+
+
+def iss_keypoints(points, salient_radius=0.0, non_max_radius=0.0, gamma_21=0.975,
+                  gamma_32=0.975, min_neighbors=5):
+    """Intrinsic Shape Signature keypoints (open3d); radii 0 let open3d pick from resolution.
+    Returns indices into ``points``."""
+    import open3d as o3d
+    points = _check_cloud(points)
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
+    kp = o3d.geometry.keypoint.compute_iss_keypoints(pcd, salient_radius, non_max_radius,
+                                                     gamma_21, gamma_32, min_neighbors)
+    kp = np.asarray(kp.points)
+    if len(kp) == 0:
+        return np.zeros(0, np.int64)
+    _, idx = KDTree(points).query(kp, k=1)
+    return np.unique(idx[:, 0])
+
+
+@dataclasses.dataclass
+class Patches:
+    """``points [P, N, 3]`` float32 relative to each keypoint; ``keypoints [P]`` indices into
+    the cloud; ``counts [P]`` neighbours each patch was drawn from."""
+    points: np.ndarray
+    keypoints: np.ndarray
+    counts: np.ndarray
+
+
+def extract_patches(points, keypoints, radius, n_points, rng: np.random.Generator,
+                    min_points=1, tree=None) -> Patches:
+    """Patches of ``n_points`` drawn with replacement from the neighbours within ``radius`` of
+    each keypoint (indices into ``points``), the keypoint excluded. Keypoints with fewer than
+    ``min_points`` neighbours are dropped (the seed skips supports under 300 points); the
+    result says which were kept."""
+    points = _check_cloud(points)
+    keypoints = np.asarray(keypoints, np.int64).reshape(-1)
+    if len(keypoints) and (keypoints.min() < 0 or keypoints.max() >= len(points)):
+        raise ValueError(f"keypoints must index points (0..{len(points) - 1})")
+    if not radius > 0:
+        raise ValueError(f"radius must be > 0, got {radius}")
+    if n_points < 1:
+        raise ValueError(f"n_points must be >= 1, got {n_points}")
+    tree = KDTree(points) if tree is None else tree
+    neigh = tree.query_radius(points[keypoints], radius) if len(keypoints) else []
+    # Drop the keypoint itself (and exact duplicates of it): no direction from the centre.
+    flat = np.concatenate(neigh) if len(neigh) else np.zeros(0, np.int64)
+    owner = np.repeat(np.arange(len(keypoints)), [len(n) for n in neigh])
+    keep = np.any(points[flat] != points[keypoints[owner]], axis=1)
+    flat, owner = flat[keep], owner[keep]
+    counts = np.bincount(owner, minlength=len(keypoints))
+    valid = counts >= max(min_points, 1)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    kept = np.nonzero(valid)[0]
+    pick = starts[kept, None] + np.floor(
+        rng.random((len(kept), n_points)) * counts[kept, None]).astype(np.int64)
+    local = points[flat[pick]] - points[keypoints[kept]][:, None, :]
+    return Patches(local.astype(np.float32), keypoints[kept], counts[kept])

@@ -1,0 +1,92 @@
+import os
+
+import numpy as np
+import pytest
+
+from sphere_jax.data import io
+
+
+def test_real_formats_read_like_open3d(shared):
+    o3d = pytest.importorskip("open3d")
+    for rel in ["3dmatch/7-scenes-redkitchen/cloud_bin_0.ply",        # binary PLY
+                "stanford/bunny/data/bun000.ply",                      # ASCII + range grid
+                "open3d_testdata/ColoredICP/frag_115.ply",             # normals, colours, faces
+                "open3d_testdata/Feature/cloud_bin_0.pcd"]:            # binary PCD, packed rgb
+        path = os.path.join(shared, rel)
+        cloud = io.read_points(path)
+        ref = o3d.io.read_point_cloud(path)
+        np.testing.assert_allclose(cloud.points, np.asarray(ref.points), atol=1e-6)
+        if ref.has_colors():
+            np.testing.assert_allclose(cloud.colors, np.asarray(ref.colors), atol=1e-6)
+    bunny = io.read_ply(os.path.join(shared, "stanford/bunny/data/bun000.ply"))
+    assert len(bunny) == 40256 and bunny.faces is None
+
+
+def test_off_mesh_and_modelnet_txt(shared):
+    mesh = io.read_off(os.path.join(shared, "modelnet40/off_meshes/ModelNet40/monitor/test/"
+                                            "monitor_0466.off"))
+    assert mesh.faces.shape[1] == 3 and mesh.faces.max() < len(mesh)
+    sample = io.sample_mesh(mesh, 2000, np.random.default_rng(0))
+    assert sample.points.shape == (2000, 3)
+    lo, hi = mesh.points.min(0), mesh.points.max(0)
+    assert np.all(sample.points >= lo - 1e-4) and np.all(sample.points <= hi + 1e-4)
+    shape = io.read_modelnet_txt(os.path.join(
+        shared, "modelnet40/modelnet40_normal_resampled/airplane/airplane_0126.txt"))
+    assert shape.points.shape == (10000, 3)
+    np.testing.assert_allclose(np.linalg.norm(shape.normals, axis=1), 1.0, atol=1e-3)
+
+
+def test_ply_pcd_round_trips(tmp_path):
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(100, 3)).astype(np.float32)
+    cols = rng.random((100, 3)).astype(np.float32)
+    io.write_ply(tmp_path / "a.ply", pts, normals=pts, colors=cols)
+    back = io.read_ply(tmp_path / "a.ply")
+    np.testing.assert_array_equal(back.points, pts)
+    np.testing.assert_allclose(back.colors, np.round(cols * 255) / 255, atol=1e-6)
+    (tmp_path / "b.pcd").write_text(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+        "POINTS 2\nDATA ascii\n1 2 3\nnan nan nan\n")
+    assert io.read_pcd(tmp_path / "b.pcd").points.tolist() == [[1, 2, 3]]   # NaN row dropped
+
+
+def _write(tmp_path, name, data):
+    path = tmp_path / name
+    (path.write_bytes if isinstance(data, bytes) else path.write_text)(data)
+    return path
+
+
+@pytest.mark.parametrize("name, data, message", [
+    ("t.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n0 0 0\n1 1 1\n", "truncated"),
+    ("h.ply", "ply\nformat ascii 1.0\nelement vertex 3\n", "header ends"),
+    ("n.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n0 zero 0\n", "non-numeric"),
+    ("x.ply", "not a ply\n", "not a PLY"),
+    ("b.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\n"
+              b"property float y\nproperty float z\nend_header\n" + bytes(40), "truncated"),
+    ("t.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 5\n"
+              "DATA ascii\n1 2 3\n", "truncated"),
+    ("b.pcd", b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n" + bytes(12),
+     "truncated"),
+    ("t.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n", "truncated"),
+    ("f.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "outside"),
+    ("r.txt", "1,2,3,0,0,1\n1,2,3\n", "expected 3 or 6"),
+    ("e.txt", "\n", "empty"),
+    ("z.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\nnan 0 0\n", "no finite points"),
+])
+def test_corrupt_files_raise_clear_errors(tmp_path, name, data, message):
+    path = _write(tmp_path, name, data)
+    with pytest.raises(io.DataError, match=message) as err:
+        io.read_points(path)
+    assert str(path) in str(err.value)
+
+
+def test_missing_file_and_unknown_suffix(tmp_path):
+    with pytest.raises(io.DataError, match="no such file"):
+        io.read_ply(tmp_path / "missing.ply")
+    with pytest.raises(io.DataError, match="unknown point-cloud suffix"):
+        io.read_points(tmp_path / "cloud.xyz")
+    with pytest.raises(io.DataError, match="line 3"):
+        io.read_points(_write(tmp_path, "l.ply", "ply\nformat ascii 1.0\nbogus line\n"))
