@@ -1,5 +1,9 @@
 """Benchmarks that print tables: ``python -m experiments.bench --suite=layers [--json]``.
 
+Patches suite (``--suite=patches``): 5000 patches of 1225 points (radius 0.3 m) from a 3DMatch
+fragment voxelised at 2 cm — the real one in ``../shared/data`` when present, else a synthetic
+fragment — timing keypoint selection and patch extraction, then the spherical signals.
+
 Layers suite: every spherical layer of the seed's models at batch 8 — forward and
 forward+backward time (median of ``--repeats`` runs after warm-up), jit compile time, FLOPs of
 the per-degree spectral products and the GFLOP/s they reach alone, next to this machine's
@@ -98,14 +102,43 @@ def run_layers(batch=8, repeats=5, only=None):
     return records
 
 
+def run_patches(repeats=5):
+    from sphere_jax import signal
+    from sphere_jax.data import io, patches, synthetic
+    shared = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "3dmatch",
+                          "demo_fullres", "cloud_bin_0.ply")
+    if os.path.isfile(shared):
+        source, points = "3DMatch demo cloud_bin_0 (../shared/data)", io.read_ply(shared).points
+    else:
+        scene_dir = os.path.join(synthetic.ensure_default_data(), "3dmatch", "synth-room-0")
+        source = "synthetic synth-room-0 cloud_bin_0"
+        points = io.read_ply(os.path.join(scene_dir, "cloud_bin_0.ply")).points
+    t0 = time.perf_counter()
+    down = patches.voxel_downsample(points, 0.02)
+    voxel_ms = 1e3 * (time.perf_counter() - t0)
+    times, out = [], None
+    for seed in range(repeats):
+        rng = np.random.default_rng(seed)
+        t0 = time.perf_counter()
+        kp = patches.random_keypoints(down, 5000, rng)
+        out = patches.extract_patches(down, kp, 0.3, 1225, rng, min_points=300)
+        times.append(time.perf_counter() - t0)
+    batch = jnp.asarray(out.points[:512])
+    signal.patch_signals(batch, 0.3, 24).block_until_ready()
+    sig_ms = _median_ms(lambda: signal.patch_signals(batch, 0.3, 24), repeats)
+    return [{"source": source, "points": len(points), "voxel_2cm_points": len(down),
+             "voxel_ms": round(voxel_ms, 1), "patches": len(out.keypoints),
+             "extract_ms": round(1e3 * statistics.median(times), 1),
+             "signals_512_B24_ms": round(sig_ms, 1)}]
+
+
 def machine_line():
     return (f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPU cores, "
             f"jax {jax.__version__} ({jax.default_backend()})")
 
 
 def format_table(records):
-    cols = ["layer", "batch", "fwd_ms", "fwd_bwd_ms", "compile_s", "product_ms", "gflop",
-            "gflop_per_s", "matmul_gflop_per_s"]
+    cols = list(records[0])
     rows = [[str(r[c]) for c in cols] for r in records]
     widths = [max(len(c), *(len(row[i]) for row in rows)) for i, c in enumerate(cols)]
     line = lambda cells: "| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths)) + " |"
@@ -115,13 +148,16 @@ def format_table(records):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suite", choices=["layers"], default="layers")
+    parser.add_argument("--suite", choices=["layers", "patches"], default="layers")
     parser.add_argument("--json", action="store_true", help="print one JSON list of records")
     parser.add_argument("--batch", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--only", default=None, help="run the layers whose name contains this")
     args = parser.parse_args(argv)
-    records = run_layers(args.batch, args.repeats, args.only)
+    if args.suite == "patches":
+        records = run_patches(args.repeats)
+    else:
+        records = run_layers(args.batch, args.repeats, args.only)
     if args.json:
         print(json.dumps(records))
     else:

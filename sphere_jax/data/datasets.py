@@ -218,6 +218,29 @@ def read_stanford_conf(path):
     return out
 
 
+@dataclasses.dataclass
+class ScanSet:
+    """Scans with world poses (``p_world = poses[name] · p``); pairs in the gt.log direction:
+    ``transform(i, j)`` maps scan j into scan i."""
+    folder: str
+    poses: dict
+
+    @property
+    def names(self):
+        return list(self.poses)
+
+    def cloud(self, name) -> Cloud:
+        return read_points(os.path.join(self.folder, name))
+
+    def transform(self, i, j):
+        return np.linalg.inv(self.poses[i]) @ self.poses[j]
+
+
+def load_stanford_scans(conf_path) -> ScanSet:
+    """The scans listed in a Stanford ``.conf`` (they sit beside it)."""
+    return ScanSet(os.path.dirname(str(conf_path)), read_stanford_conf(conf_path))
+
+
 # ----------------------------------------------------------------------------------------------
 # RGB-D frames
 # ----------------------------------------------------------------------------------------------

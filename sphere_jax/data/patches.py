@@ -35,13 +35,13 @@ def voxel_downsample(points, voxel, return_index=False):
     keys = np.ravel_multi_index(cells.T, tuple(cells.max(0) + 1))   # one int per voxel: fast
     _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
-    centroid = np.zeros((len(counts), 3))
-    np.add.at(centroid, inverse, points)
+    centroid = np.stack([np.bincount(inverse, points[:, k], len(counts)) for k in range(3)], 1)
     centroid /= counts[:, None]
     if not return_index:
         return centroid.astype(np.float32)
     dist = np.linalg.norm(points - centroid[inverse], axis=1)
-    order = np.lexsort((dist, inverse))                     # by voxel, then distance
+    # Sort by voxel, then by distance to the centroid (one float key: dist/voxel < 1).
+    order = np.argsort(inverse + np.minimum(dist / (2 * voxel), 0.999))
     first = np.ones(len(order), bool)
     first[1:] = inverse[order][1:] != inverse[order][:-1]
     return order[first]

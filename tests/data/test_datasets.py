@@ -42,6 +42,10 @@ def test_stanford_bunny_conf_aligns_scans(shared):
     assert overlap.mean() > 0.5 and d[overlap].mean() < 0.001
     d_raw = NearestNeighbors(n_neighbors=1).fit(p0).kneighbors(p45)[0][:, 0]
     assert np.mean(d_raw < 0.002) < overlap.mean() - 0.2
+    scans = datasets.load_stanford_scans(os.path.join(root, "bun.conf"))
+    t = scans.transform("bun000.ply", "bun045.ply")                   # 45 -> 0
+    d_pair = nn.kneighbors(_transform(_transform(p45, t), conf["bun000.ply"]))[0][:, 0]
+    np.testing.assert_allclose(d_pair, d, atol=1e-5)
 
 
 def test_rgbd_frames_fuse_under_their_poses(shared):

@@ -90,3 +90,26 @@ def test_missing_file_and_unknown_suffix(tmp_path):
         io.read_points(tmp_path / "cloud.xyz")
     with pytest.raises(io.DataError, match="line 3"):
         io.read_points(_write(tmp_path, "l.ply", "ply\nformat ascii 1.0\nbogus line\n"))
+
+
+def test_modelnet_h5_needs_h5py_or_reads_clean_errors(tmp_path):
+    path = tmp_path / "ply_data_train0.h5"
+    path.write_bytes(b"not hdf5 at all")
+    try:
+        import h5py  # noqa: F401
+    except ImportError:
+        with pytest.raises(ImportError, match="pip install h5py"):
+            io.read_modelnet_h5(path)
+        return
+    with pytest.raises(io.DataError, match="not a readable HDF5"):
+        io.read_modelnet_h5(path)
+
+
+def test_keypoint_index_files(shared, tmp_path):
+    from sphere_jax.data import datasets
+    idx = datasets.read_keypoint_indices(
+        os.path.join(shared, "3dmatch/demo_fullres/cloud_bin_0_keypoints.txt"), 258342)
+    assert idx.shape == (1000,) and idx.max() < 258342
+    (tmp_path / "k.txt").write_text("1\n2\n999\n")
+    with pytest.raises(io.DataError, match=r"\[0, 10\)"):
+        datasets.read_keypoint_indices(tmp_path / "k.txt", 10)
