@@ -185,7 +185,8 @@ def make_shapes(out_dir, seed, per_class=20, n_points=10000, test_fraction=0.25)
             shape_id = f"{name}_{k + 1:04d}"
             rows = "\n".join(",".join(f"{v:.6f}" for v in r) for r in np.hstack([pts, nrm]))
             io._atomic_write(os.path.join(out_dir, name, shape_id + ".txt"), (rows + "\n").encode())
-            (test if k >= per_class * (1 - test_fraction) else train).append(shape_id)
+            n_test = max(1, int(round(per_class * test_fraction))) if per_class > 1 else 0
+            (test if k >= per_class - n_test else train).append(shape_id)
     for fname, items in (("shape_names.txt", names), ("train.txt", train), ("test.txt", test)):
         io._atomic_write(os.path.join(out_dir, fname), ("\n".join(items) + "\n").encode())
     return {"classes": len(names), "train": len(train), "test": len(test)}

@@ -1,0 +1,40 @@
+"""Defaults shared by the experiment configs (data, training loop, checkpoints)."""
+from __future__ import annotations
+
+import ml_collections
+
+SIZES = ("paper", "cpu", "tiny")
+
+
+def check_size(arg):
+    size = arg or "paper"
+    if size not in SIZES:
+        raise ValueError(f"config argument must be one of {SIZES}, got {arg!r}")
+    return size
+
+
+def base(size: str) -> ml_collections.ConfigDict:
+    c = ml_collections.ConfigDict()
+    c.seed = 0
+    c.size = size
+    c.data = ml_collections.ConfigDict(dict(
+        root="",                  # empty: the embedded synthetic scans (generated on first use)
+        voxel=0.02,               # fragments voxel-downsampled at 2 cm (seed 4.3)
+        keypoint_leaf=0.10,       # one keypoint every 10 cm (seed 3.1.5)
+        radius=0.30,              # support radius (3DMatch)
+        n_points=1225,            # points per patch, drawn with replacement
+        min_points=300,           # supports with fewer points are skipped
+        val_fraction=0.1,         # keypoints held out for the validation loss
+        occlusion=True,           # occlude the rotated copy (seed 3.1.5)
+    ))
+    c.train = ml_collections.ConfigDict(dict(
+        steps=50_000, batch_size=8, learning_rate=1e-3, log_every=50, eval_every=1000,
+        eval_batches=4, checkpoint_every=1000, keep_checkpoints=3))
+    if size == "cpu":
+        c.data.n_points = 512
+        c.train.update(steps=1500, log_every=25, eval_every=250, checkpoint_every=250)
+    elif size == "tiny":
+        c.data.update(n_points=64, min_points=20, keypoint_leaf=0.4)
+        c.train.update(steps=3, batch_size=4, log_every=1, eval_every=2, eval_batches=1,
+                       checkpoint_every=2)
+    return c

@@ -1,0 +1,21 @@
+"""Compass: a self-supervised learned local reference frame (thesis 3.1).
+
+    python -m experiments.train --config=compass:cpu --workdir=runs/compass_cpu
+
+Expected: the geodesic loss between the LRF of the rotated, occluded copy and the rotated
+LRF of the original falls from ~2 rad (random) to well under 1 rad within the 'cpu' budget on
+the embedded scans; 'paper' (the seed's network and batch) needs a GPU-sized budget.
+"""
+from configs import common
+
+
+def get_config(arg=None):
+    size = common.check_size(arg)
+    c = common.base(size)
+    c.model = "compass"
+    c.model_kwargs = {
+        "paper": dict(bandwidths=(24, 24, 24, 24, 24), features=(40, 20, 10, 1)),
+        "cpu": dict(bandwidths=(8, 8, 8, 8, 8), features=(16, 8, 4, 1)),
+        "tiny": dict(bandwidths=(4, 4, 4, 4, 4), features=(4, 2, 2, 1)),
+    }[size]
+    return c

@@ -1,0 +1,24 @@
+"""LEAD: an unsupervised rotation-equivariant descriptor (thesis 4.1).
+
+    python -m experiments.train --config=lead:cpu --workdir=runs/lead_cpu
+
+Expected: the Chamfer loss (unit-ball patches) falls steadily; the 512-value descriptor is an
+SO(3) map that rotates with the patch (tests check it).
+"""
+from configs import common
+
+
+def get_config(arg=None):
+    size = common.check_size(arg)
+    c = common.base(size)
+    c.model = "lead"
+    c.train.batch_size = {"paper": 100, "cpu": 16, "tiny": 4}[size]
+    c.model_kwargs = {
+        "paper": dict(bandwidths=(24, 16, 12, 8, 6, 4), features=(40, 40, 40, 40, 1),
+                      decoder_side=35),
+        "cpu": dict(bandwidths=(8, 6, 5, 4, 4, 4), features=(16, 16, 16, 16, 1),
+                    decoder_side=16, decoder_hidden=(256, 128, 64)),
+        "tiny": dict(bandwidths=(4, 4, 4, 4, 4, 4), features=(4, 4, 4, 4, 1), decoder_side=6,
+                     decoder_hidden=(16, 16, 8)),
+    }[size]
+    return c

@@ -1,0 +1,21 @@
+"""LEAD-PN: LEAD with a PointNet encoder on FLARE-oriented patches (ablation, thesis 4.1).
+
+    python -m experiments.train --config=lead_pn:cpu --workdir=runs/lead_pn_cpu
+
+Expected: the Chamfer loss falls faster than LEAD's at first (no spherical convolutions), but
+the code depends on the FLARE frame's repeatability.
+"""
+from configs import common
+
+
+def get_config(arg=None):
+    size = common.check_size(arg)
+    c = common.base(size)
+    c.model = "lead_pn"
+    c.train.batch_size = {"paper": 100, "cpu": 16, "tiny": 4}[size]
+    c.model_kwargs = {
+        "paper": dict(features=(64, 128, 512), decoder_side=35),
+        "cpu": dict(features=(64, 128, 512), decoder_side=16, decoder_hidden=(256, 128, 64)),
+        "tiny": dict(features=(8, 8, 16), decoder_side=6, decoder_hidden=(16, 16, 8)),
+    }[size]
+    return c

@@ -1,0 +1,28 @@
+"""SOUND: a self-orienting descriptor — LEAD and Compass sharing an S2 layer (thesis 4.2).
+
+    python -m experiments.train --config=sound:cpu --workdir=runs/sound_cpu
+
+Loss = 100 · Chamfer + geodesic. Expected: both terms fall within the 'cpu' budget on the
+embedded scans (minutes on 2 cores).
+"""
+from configs import common
+
+
+def get_config(arg=None):
+    size = common.check_size(arg)
+    c = common.base(size)
+    c.model = "sound"
+    c.loss = dict(chamfer_weight=100.0, angular_weight=1.0)
+    c.model_kwargs = {
+        "paper": dict(s2_bandwidths=(24, 24), s2_features=40,
+                      descriptor_bandwidths=(24, 16, 12, 8, 4),
+                      descriptor_features=(40, 40, 40, 1),
+                      lrf_bandwidths=(24, 24, 24, 24), lrf_features=(20, 10, 1)),
+        "cpu": dict(s2_bandwidths=(8, 8), s2_features=16, descriptor_bandwidths=(8, 6, 5, 4),
+                    descriptor_features=(16, 16, 1), lrf_bandwidths=(8, 8, 8),
+                    lrf_features=(8, 1), decoder_side=16, decoder_hidden=(256, 128, 64)),
+        "tiny": dict(s2_bandwidths=(4, 4), s2_features=4, descriptor_bandwidths=(4, 4, 4),
+                     descriptor_features=(4, 1), lrf_bandwidths=(4, 4, 4), lrf_features=(2, 1),
+                     decoder_side=6, decoder_hidden=(16, 16, 8)),
+    }[size]
+    return c

@@ -1,0 +1,51 @@
+"""Train a model: ``python -m experiments.train --config=sound[:cpu|:tiny] [--workdir=DIR]``.
+
+``--config`` takes an experiment name (``sound``), ``name:size`` or a config file path
+(``configs/sound.py:cpu``); fields are overridden with ``--config.train.steps=200`` and the
+like. Running the same command again resumes from the newest checkpoint in the workdir.
+"""
+from __future__ import annotations
+
+import os
+import re
+import sys
+
+from absl import app, flags
+from ml_collections import config_flags
+
+CONFIG_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                          "configs")
+
+
+def resolve_config_arg(argv):
+    """Rewrite ``--config=NAME[:ARG]`` to ``--config=<repo>/configs/NAME.py[:ARG]``."""
+    out = []
+    for a in argv:
+        m = re.fullmatch(r"--config=([A-Za-z_][A-Za-z0-9_]*)(:[A-Za-z0-9_]+)?", a)
+        if m:
+            a = f"--config={os.path.join(CONFIG_DIR, m.group(1) + '.py')}{m.group(2) or ''}"
+        out.append(a)
+    return out
+
+
+config_flags.DEFINE_config_file("config", None, "experiment config (name, name:size or path)")
+flags.DEFINE_string("workdir", None, "where checkpoints, metrics and the bundle go "
+                                     "(default: runs/<model>_<size>)")
+
+
+def main(_):
+    from absl import logging
+    logging.set_verbosity(logging.WARNING)          # orbax logs every save at INFO
+    from sphere_jax import training
+    config = flags.FLAGS.config
+    if config is None:
+        raise app.UsageError("--config is required, e.g. --config=sound:cpu")
+    workdir = flags.FLAGS.workdir or os.path.join("runs", f"{config.model}_{config.size}")
+    _, last = training.train_and_evaluate(config, workdir)
+    print(f"finished in {workdir}: " + ", ".join(f"{k}={v:.4g}" for k, v in last.items()
+                                                  if isinstance(v, float)))
+
+
+if __name__ == "__main__":
+    sys.argv = resolve_config_arg(sys.argv)
+    app.run(main)

@@ -1,0 +1,131 @@
+"""Training batches from scans (self-supervised: any folder of scans will do) and shapes.
+
+Batches are a pure function of ``(seed, step)``: a resumed run sees exactly the batches the
+uninterrupted run would have seen.
+"""
+from __future__ import annotations
+
+import glob
+import os
+
+import numpy as np
+from sklearn.neighbors import KDTree
+
+from sphere_jax.data import augment, io, patches, synthetic
+
+
+def find_scans(root):
+    """Scan files under ``root``: 3DMatch fragments (``cloud_bin_K.ply``) if there are any,
+    else every .ply / .pcd, recursively (sorted)."""
+    root = str(root)
+    if not os.path.isdir(root):
+        raise FileNotFoundError(f"data root {root!r} is not a folder")
+    frags = sorted(glob.glob(os.path.join(root, "**", "cloud_bin_*.ply"), recursive=True))
+    if frags:
+        return frags
+    found = sorted(p for ext in ("ply", "pcd")
+                   for p in glob.glob(os.path.join(root, "**", f"*.{ext}"), recursive=True))
+    if not found:
+        raise FileNotFoundError(f"no .ply or .pcd scans under {root!r}")
+    return found
+
+
+def default_scan_root():
+    return os.path.join(synthetic.ensure_default_data(), "3dmatch")
+
+
+class PatchSource:
+    """Keypoints of a set of scans and deterministic batches of unit-ball patches."""
+
+    def __init__(self, scan_paths, voxel, keypoint_leaf, radius, n_points, min_points,
+                 val_fraction=0.1, seed=0):
+        self.radius, self.n_points, self.min_points = radius, n_points, min_points
+        self.seed = seed
+        self.clouds, self.trees, index = [], [], []
+        for s, path in enumerate(scan_paths):
+            pts = patches.voxel_downsample(io.read_points(path).points, voxel)
+            tree = KDTree(pts)
+            kp = patches.uniform_keypoints(pts, keypoint_leaf)
+            support = tree.query_radius(pts[kp], radius, count_only=True) - 1
+            kp = kp[support >= min_points]
+            self.clouds.append(pts)
+            self.trees.append(tree)
+            index.extend((s, k) for k in kp)
+        if not index:
+            raise ValueError(f"no keypoint with ≥ {min_points} neighbours within {radius} in "
+                             f"{len(scan_paths)} scan(s)")
+        index = np.array(index, np.int64)
+        order = np.random.default_rng(seed).permutation(len(index))
+        n_val = int(round(val_fraction * len(index))) if len(index) > 1 else 0
+        self.splits = {"val": index[order[:n_val]], "train": index[order[n_val:]]}
+
+    def __len__(self):
+        return len(self.splits["train"])
+
+    def batch(self, step, batch_size, split="train", copies=False, occlusion=True):
+        """``{'patches': [B, N, 3]}`` in units of the radius; with ``copies``, also
+        ``'copies'`` (each patch rotated by ``'rotations'`` [B, 3, 3], occluded, resampled)."""
+        pool = self.splits[split]
+        if len(pool) == 0:
+            raise ValueError(f"the {split!r} split is empty")
+        rng = np.random.default_rng([self.seed, step, 0 if split == "train" else 1])
+        picks = pool[rng.integers(0, len(pool), batch_size)]
+        out = np.empty((batch_size, self.n_points, 3), np.float32)
+        for s in np.unique(picks[:, 0]):
+            rows = np.nonzero(picks[:, 0] == s)[0]
+            got = patches.extract_patches(self.clouds[s], picks[rows, 1], self.radius,
+                                          self.n_points, rng, tree=self.trees[s])
+            out[rows] = got.points / self.radius
+        result = {"patches": out}
+        if copies:
+            rots = augment.random_rotations(rng, batch_size)
+            cop = np.empty_like(out)
+            for b in range(batch_size):
+                rotated = augment.rotate(out[b], rots[b])
+                if occlusion:
+                    rotated = augment.occlude(rotated, 1.0, rng)
+                cop[b] = augment.resample(rotated, self.n_points, rng)
+            result.update(copies=cop, rotations=rots.astype(np.float32))
+        return result
+
+
+class ShapeSource:
+    """A ModelNet-layout shape set (``shape_names.txt``, ``train.txt`` / ``test.txt`` or
+    ``modelnet40_*.txt`` lists, ``<class>/<id>.txt`` files)."""
+
+    def __init__(self, root, n_points, seed=0):
+        self.n_points, self.seed = n_points, seed
+        names_file = next((os.path.join(root, f) for f in ("shape_names.txt",
+                                                           "modelnet40_shape_names.txt")
+                           if os.path.isfile(os.path.join(root, f))), None)
+        if names_file is None:
+            raise FileNotFoundError(f"no shape_names.txt under {root!r}")
+        self.classes = open(names_file).read().split()
+        self.splits = {}
+        for split in ("train", "test"):
+            lst = next((os.path.join(root, f) for f in (f"{split}.txt", f"modelnet40_{split}.txt")
+                        if os.path.isfile(os.path.join(root, f))), None)
+            ids = open(lst).read().split() if lst else []
+            shapes, labels = [], []
+            for sid in ids:
+                cls = sid.rsplit("_", 1)[0]
+                path = os.path.join(root, cls, sid + ".txt")
+                if os.path.isfile(path):
+                    shapes.append(io.read_modelnet_txt(path).points)
+                    labels.append(self.classes.index(cls))
+            self.splits[split] = (shapes, np.array(labels, np.int64))
+        if not self.splits["train"][0]:
+            raise ValueError(f"no training shapes found under {root!r}")
+
+    def batch(self, step, batch_size, split="train", rotate=False):
+        shapes, labels = self.splits[split]
+        if not shapes:
+            raise ValueError(f"the {split!r} split of the shape set is empty")
+        rng = np.random.default_rng([self.seed, step, 0 if split == "train" else 1])
+        pick = rng.integers(0, len(shapes), batch_size)
+        pts = np.stack([shapes[i][rng.choice(len(shapes[i]), self.n_points,
+                                             replace=len(shapes[i]) < self.n_points)]
+                        for i in pick]).astype(np.float32)
+        if rotate:
+            pts = np.einsum("bij,bnj->bni", augment.random_rotations(rng, batch_size), pts)
+        return {"points": pts.astype(np.float32), "labels": labels[pick]}

@@ -1,0 +1,50 @@
+"""LEAD (thesis 4.1): an unsupervised rotation-equivariant descriptor, and LEAD-PN.
+
+LEAD: patch -> spherical encoder -> one-channel SO(3) map at bandwidth 4 (8³ = 512 values: the
+descriptor, which rotates with the patch) -> folding decoder reconstructs the patch (Chamfer).
+At test time the descriptor is rotated to a canonical pose by an LRF, in the spectral domain.
+LEAD-PN: the same with a PointNet encoder on patches already oriented by an LRF (FLARE).
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import flax.linen as nn
+
+from sphere_jax.models.folding import FoldingDecoder
+from sphere_jax.models.pointnet import PointNetEncoder
+from sphere_jax.models.spherical import PatchSignal, SphericalStack
+
+
+class Lead(nn.Module):
+    """``__call__(patches [N, P, 3], train) -> (descriptor maps [N, 2b, 2b, 2b],
+    reconstructions [N, M, 3])``; the descriptor is the map flattened."""
+    bandwidths: Sequence[int] = (24, 16, 12, 8, 6, 4)
+    features: Sequence[int] = (40, 40, 40, 40, 1)
+    n_shells: int = 4
+    decoder_side: int = 35
+    decoder_hidden: Sequence[int] = (514, 257, 128)
+
+    def setup(self):
+        self.signal = PatchSignal(self.bandwidths[0], self.n_shells)
+        self.encoder = SphericalStack(self.features, self.bandwidths)
+        self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden)
+
+    def encode(self, patches, train: bool = False):
+        return self.encoder(self.signal(patches), train)[:, 0]
+
+    def __call__(self, patches, train: bool = False):
+        maps = self.encode(patches, train)
+        return maps, self.decoder(maps.reshape(maps.shape[0], -1), train)
+
+
+class LeadPN(nn.Module):
+    """``__call__(oriented patches [N, P, 3], train) -> (codes [N, D], reconstructions)``."""
+    features: Sequence[int] = (64, 128, 512)
+    decoder_side: int = 35
+    decoder_hidden: Sequence[int] = (514, 257, 128)
+
+    @nn.compact
+    def __call__(self, patches, train: bool = False):
+        code = PointNetEncoder(self.features)(patches, train)
+        return code, FoldingDecoder(self.decoder_side, self.decoder_hidden)(code, train)
