@@ -38,8 +38,10 @@ class Sound(nn.Module):
         self.signal = PatchSignal(self.s2_bandwidths[0], self.n_shells)
         self.s2 = layers.S2Conv(self.s2_features, *self.s2_bandwidths)
         self.s2_norm = layers.GridBatchNorm()
+        # No ReLU after the descriptor layer: it stays band-limited, so rotating it by its LRF
+        # (spectrally) is exact (see models/lead.py).
         self.descriptor = SphericalStack(self.descriptor_features, self.descriptor_bandwidths,
-                                         s2_first=False)
+                                         s2_first=False, final_relu=False)
         self.lrf = SphericalStack(self.lrf_features, self.lrf_bandwidths, s2_first=False,
                                   final_relu=False)
         self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden)

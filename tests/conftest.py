@@ -2,7 +2,7 @@ import os
 
 import pytest
 
-SHARED = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared",
+SHARED = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "..", "shared",
                                        "data"))
 
 

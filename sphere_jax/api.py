@@ -1,0 +1,131 @@
+"""Inference from Python: load a trained bundle, then orient or describe keypoints of a cloud.
+
+    from sphere_jax import api
+    compass = api.load_bundle("checkpoints/compass_cpu/bundle")
+    frames = compass.orient(points, keypoints, radius=0.3)        # [K, 3, 3], columns x̂ ŷ ẑ
+    sound = api.load_bundle("checkpoints/sound_cpu/bundle")
+    desc = sound.describe(points, keypoints, radius=0.3)          # [K, 512]
+
+Patches are drawn with a fixed seed, jitted and vmapped over chunks of keypoints, so memory
+stays bounded for any number of keypoints.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import jax
+import jax.numpy as jnp
+import ml_collections
+import numpy as np
+import orbax.checkpoint as ocp
+from sklearn.neighbors import KDTree
+
+from sphere_jax import lrf, transforms
+from sphere_jax.data import patches as patch_lib
+
+
+@dataclasses.dataclass
+class Bundle:
+    """A trained model: flax module, variables and the config it was trained with."""
+    model: object
+    variables: dict
+    config: ml_collections.ConfigDict
+
+    @property
+    def kind(self):
+        return self.config.model
+
+    # ---- patches ----------------------------------------------------------------------------
+
+    def patches(self, points, keypoints, radius=None, seed=0):
+        """Unit-ball patches ``[K, N, 3]`` around ``keypoints`` (indices ``[K]`` or coordinates
+        ``[K, 3]``)."""
+        radius = float(radius or self.config.data.radius)
+        points = np.asarray(points, np.float32)
+        keypoints = np.asarray(keypoints)
+        if keypoints.ndim == 2 and keypoints.shape[1] == 3:      # coordinates: add as points
+            idx = np.arange(len(points), len(points) + len(keypoints))
+            points = np.concatenate([points, keypoints.astype(np.float32)])
+            keypoints = idx
+        got = patch_lib.extract_patches(points, keypoints, radius, self.config.data.n_points,
+                                        np.random.default_rng(seed), min_points=1,
+                                        tree=KDTree(points))
+        if len(got.keypoints) != len(keypoints):
+            missing = len(keypoints) - len(got.keypoints)
+            raise ValueError(f"{missing} keypoint(s) have no neighbour within radius={radius}")
+        return got.points / radius
+
+    def _chunked(self, fn, x, chunk):
+        outs = [np.asarray(fn(jnp.asarray(x[i:i + chunk]))) for i in range(0, len(x), chunk)]
+        return np.concatenate(outs) if outs else np.zeros((0,))
+
+    # ---- LRFs and descriptors ---------------------------------------------------------------
+
+    def orient(self, points, keypoints, radius=None, chunk=256, seed=0):
+        """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles)."""
+        if self.kind not in ("compass", "sound"):
+            raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
+        return self._chunked(self._orient_fn, self.patches(points, keypoints, radius, seed),
+                             chunk)
+
+    def describe(self, points, keypoints, radius=None, chunk=256, seed=0, frames=None):
+        """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
+        ``frames`` (``[K, 3, 3]``, e.g. from a Compass bundle) or, by default, FLARE; LEAD-PN:
+        the code of the FLARE-oriented patch; SOUND: self-oriented."""
+        p = self.patches(points, keypoints, radius, seed)
+        if self.kind == "sound":
+            return self._chunked(self._sound_fn, p, chunk)
+        if self.kind == "lead_pn":
+            return self._chunked(self._lead_pn_fn, p, chunk)
+        if self.kind != "lead":
+            raise ValueError(f"describe needs a lead, lead_pn or sound bundle, not {self.kind!r}")
+        if frames is None:
+            frames = self._chunked(jax.jit(jax.vmap(lrf.flare)), p, chunk)
+        frames = np.asarray(frames, np.float32)
+        if frames.shape != (len(p), 3, 3):
+            raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
+        both = np.concatenate([p.reshape(len(p), -1), frames.reshape(len(p), 9)], 1)
+        return self._chunked(self._lead_fn, both, chunk)
+
+    # ---- jitted pieces ----------------------------------------------------------------------
+
+    def __post_init__(self):
+        apply = lambda x, **kw: self.model.apply(self.variables, x, train=False, **kw)
+        n = self.config.data.n_points
+
+        def oriented_descriptor(maps, frames):
+            canon = jax.vmap(transforms.rotate_so3)(maps, jnp.swapaxes(frames, 1, 2))
+            return canon.reshape(canon.shape[0], -1)
+
+        def lead(x):
+            pts, frames = x[:, :n * 3].reshape(-1, n, 3), x[:, n * 3:].reshape(-1, 3, 3)
+            maps = self.model.apply(self.variables, pts, method="encode")
+            return oriented_descriptor(maps, frames)
+
+        def sound(x):
+            rot, maps, _ = apply(x)
+            return oriented_descriptor(maps, rot)
+
+        def lead_pn(x):
+            frames = jax.vmap(lrf.flare)(x)
+            return apply(jnp.einsum("bnk,bkj->bnj", x, frames))[0]
+
+        self._orient_fn = jax.jit(lambda x: apply(x)[0])
+        self._lead_fn, self._sound_fn, self._lead_pn_fn = map(jax.jit, (lead, sound, lead_pn))
+
+
+def load_bundle(path) -> Bundle:
+    """Load ``bundle/`` written at the end of training (``variables/`` + ``config.json``)."""
+    from sphere_jax import training
+    path = os.path.abspath(str(path))
+    cfg_file = os.path.join(path, "config.json")
+    if not os.path.isfile(cfg_file):
+        raise FileNotFoundError(f"{path} is not a bundle (no config.json)")
+    with open(cfg_file) as f:
+        config = ml_collections.ConfigDict(json.load(f))
+    model = training.build_model(config)
+    with ocp.StandardCheckpointer() as ckpt:
+        variables = ckpt.restore(os.path.join(path, "variables"))
+    return Bundle(model, variables, config)
