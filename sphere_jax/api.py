@@ -26,6 +26,9 @@ from sphere_jax import lrf, transforms
 from sphere_jax.data import patches as patch_lib
 
 
+FLARE_BATCH = jax.jit(jax.vmap(lrf.flare))
+
+
 @dataclasses.dataclass
 class Bundle:
     """A trained model: flax module, variables and the config it was trained with."""
@@ -42,24 +45,11 @@ class Bundle:
     def patches(self, points, keypoints, radius=None, seed=0):
         """Unit-ball patches ``[K, N, 3]`` around ``keypoints`` (indices ``[K]`` or coordinates
         ``[K, 3]``)."""
-        radius = float(radius or self.config.data.radius)
-        points = np.asarray(points, np.float32)
-        keypoints = np.asarray(keypoints)
-        if keypoints.ndim == 2 and keypoints.shape[1] == 3:      # coordinates: add as points
-            idx = np.arange(len(points), len(points) + len(keypoints))
-            points = np.concatenate([points, keypoints.astype(np.float32)])
-            keypoints = idx
-        got = patch_lib.extract_patches(points, keypoints, radius, self.config.data.n_points,
-                                        np.random.default_rng(seed), min_points=1,
-                                        tree=KDTree(points))
-        if len(got.keypoints) != len(keypoints):
-            missing = len(keypoints) - len(got.keypoints)
-            raise ValueError(f"{missing} keypoint(s) have no neighbour within radius={radius}")
-        return got.points / radius
+        return extract_unit_patches(points, keypoints, float(radius or self.config.data.radius),
+                                    self.config.data.n_points, seed)
 
     def _chunked(self, fn, x, chunk):
-        outs = [np.asarray(fn(jnp.asarray(x[i:i + chunk]))) for i in range(0, len(x), chunk)]
-        return np.concatenate(outs) if outs else np.zeros((0,))
+        return run_chunked(fn, x, chunk)
 
     # ---- LRFs and descriptors ---------------------------------------------------------------
 
@@ -82,7 +72,7 @@ class Bundle:
         if self.kind != "lead":
             raise ValueError(f"describe needs a lead, lead_pn or sound bundle, not {self.kind!r}")
         if frames is None:
-            frames = self._chunked(jax.jit(jax.vmap(lrf.flare)), p, chunk)
+            frames = self._chunked(FLARE_BATCH, p, chunk)
         frames = np.asarray(frames, np.float32)
         if frames.shape != (len(p), 3, 3):
             raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
@@ -114,6 +104,38 @@ class Bundle:
 
         self._orient_fn = jax.jit(lambda x: apply(x)[0])
         self._lead_fn, self._sound_fn, self._lead_pn_fn = map(jax.jit, (lead, sound, lead_pn))
+
+
+def run_chunked(fn, x, chunk):
+    """``fn`` over ``x`` in chunks of a fixed size (the last one padded), so a jitted ``fn``
+    compiles once whatever the number of rows."""
+    chunk = max(1, int(chunk))
+    outs = []
+    for i in range(0, len(x), chunk):
+        part = x[i:i + chunk]
+        pad = chunk - len(part)
+        if pad:
+            part = np.concatenate([part, np.repeat(part[-1:], pad, 0)])
+        outs.append(np.asarray(fn(jnp.asarray(part)))[:chunk - pad])
+    return np.concatenate(outs) if outs else np.zeros((0,))
+
+
+def extract_unit_patches(points, keypoints, radius, n_points, seed=0):
+    """Patches ``[K, n_points, 3]`` in units of ``radius`` around ``keypoints`` (indices ``[K]``
+    or coordinates ``[K, 3]``); every keypoint must have a neighbour."""
+    points = np.asarray(points, np.float32)
+    keypoints = np.asarray(keypoints)
+    if keypoints.ndim == 2 and keypoints.shape[1] == 3:          # coordinates: add as points
+        idx = np.arange(len(points), len(points) + len(keypoints))
+        points = np.concatenate([points, keypoints.astype(np.float32)])
+        keypoints = idx
+    got = patch_lib.extract_patches(points, keypoints, radius, n_points,
+                                    np.random.default_rng(seed), min_points=1,
+                                    tree=KDTree(points))
+    if len(got.keypoints) != len(keypoints):
+        missing = len(keypoints) - len(got.keypoints)
+        raise ValueError(f"{missing} keypoint(s) have no neighbour within radius={radius}")
+    return got.points / radius
 
 
 def load_bundle(path) -> Bundle:
