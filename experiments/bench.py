@@ -4,6 +4,10 @@ Patches suite (``--suite=patches``): 5000 patches of 1225 points (radius 0.3 m) 
 fragment voxelised at 2 cm — the real one in ``../shared/data`` when present, else a synthetic
 fragment — timing keypoint selection and patch extraction, then the spherical signals.
 
+Models suite (``--suite=models [--sizes=cpu,paper]``): forward and training-step time of every
+config at its configured batch, and LEAD/SOUND description time per keypoint for 5000 keypoints
+of the 3DMatch kitchen fragment (when ``../shared/data`` is present).
+
 Layers suite: every spherical layer of the seed's models at batch 8 — forward and
 forward+backward time (median of ``--repeats`` runs after warm-up), jit compile time, FLOPs of
 the per-degree spectral products and the GFLOP/s they reach alone, next to this machine's
@@ -132,6 +136,48 @@ def run_patches(repeats=5):
              "signals_512_B24_ms": round(sig_ms, 1)}]
 
 
+def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
+    """Forward and training-step time per config and size; description ms per keypoint."""
+    import importlib
+    import optax
+    from sphere_jax import api, training
+    from sphere_jax.data import io, patches
+    records = []
+    shared = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "3dmatch",
+                          "7-scenes-redkitchen", "cloud_bin_0.ply")
+    cloud = io.read_ply(shared).points if os.path.isfile(shared) else None
+    for name in ("compass", "lead", "lead_pn", "sound"):
+        for size in sizes:
+            config = importlib.import_module(f"configs.{name}").get_config(size)
+            model = training.build_model(config)
+            tx = optax.adam(config.train.learning_rate)
+            bs, n = config.train.batch_size, config.data.n_points
+            rng = np.random.default_rng(0)
+            p = (rng.normal(size=(bs, n, 3)) * 0.4).astype(np.float32)
+            batch = {"patches": p}
+            if name in ("compass", "sound"):
+                rots = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(bs)])
+                batch.update(copies=p, rotations=rots.astype(np.float32))
+            state = training.init_state(config, model, tx, batch)
+            step, _ = training.make_steps(config, model, tx)
+            variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
+            fwd = jax.jit(lambda v, x: model.apply(v, x, train=False))
+            fwd_ms = _median_ms(lambda: fwd(variables, p), repeats)
+            step_ms = _median_ms(lambda: step(state, batch)[1]["loss"], repeats)
+            rec = {"config": f"{name}:{size}", "batch": bs, "fwd_ms": round(fwd_ms, 1),
+                   "train_step_ms": round(step_ms, 1), "describe_ms_per_kp": ""}
+            if name in ("lead", "sound") and cloud is not None:
+                bundle = api.Bundle(model, variables, config)
+                down = patches.voxel_downsample(cloud, 0.02)
+                kp = patches.random_keypoints(down, keypoints, np.random.default_rng(0))
+                bundle.describe(down, kp[:256], radius=0.3)              # compile
+                t0 = time.perf_counter()
+                bundle.describe(down, kp, radius=0.3)
+                rec["describe_ms_per_kp"] = round(1e3 * (time.perf_counter() - t0) / len(kp), 3)
+            records.append(rec)
+    return records
+
+
 def machine_line():
     return (f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPU cores, "
             f"jax {jax.__version__} ({jax.default_backend()})")
@@ -148,7 +194,8 @@ def format_table(records):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suite", choices=["layers", "patches"], default="layers")
+    parser.add_argument("--suite", choices=["layers", "patches", "models"], default="layers")
+    parser.add_argument("--sizes", default="cpu,paper", help="models suite: config sizes")
     parser.add_argument("--json", action="store_true", help="print one JSON list of records")
     parser.add_argument("--batch", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=5)
@@ -156,6 +203,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.suite == "patches":
         records = run_patches(args.repeats)
+    elif args.suite == "models":
+        records = run_models(tuple(args.sizes.split(",")), min(args.repeats, 3))
     else:
         records = run_layers(args.batch, args.repeats, args.only)
     if args.json:

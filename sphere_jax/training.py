@@ -184,9 +184,11 @@ def save_bundle(workdir, config, state):
 # The loop
 # ----------------------------------------------------------------------------------------------
 
-def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress=True):
+def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress=True,
+                       init_variables=None):
     """Train (resuming from the newest checkpoint in ``workdir``), evaluate, write a bundle.
-    Returns the final state and the last metrics."""
+    ``init_variables`` (params and batch_stats, e.g. from a bundle) start a fresh run from
+    trained weights (test-time adaptation). Returns the final state and the last metrics."""
     os.makedirs(workdir, exist_ok=True)
     source = build_source(config)
     if config.model == "classify":
@@ -195,6 +197,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     model = build_model(config)
     tx = optax.adam(config.train.learning_rate)
     state = init_state(config, model, tx, get_batch(config, source, 0))
+    if init_variables is not None:
+        state.update(params=init_variables["params"],
+                     batch_stats=init_variables.get("batch_stats", {}),
+                     opt_state=tx.init(init_variables["params"]))
     train_step, eval_step = make_steps(config, model, tx)
     mngr = checkpoint_manager(workdir, config)
     metrics_path = os.path.join(workdir, "metrics.jsonl")
