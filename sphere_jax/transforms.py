@@ -10,8 +10,8 @@ Bases (orthonormal on S2; orthogonal on SO(3)), in the Wigner convention of :mod
 With these bases rotation is a matrix product on the first index: ``(L_R f)^ = D^l(R) f̂``,
 on S2 and on SO(3) alike (``(L_R f)(x) = f(R⁻¹x)``).
 
-Signals are real, so half of each spectrum is stored — the half that the real FFT over the last
-grid axis produces — and the rest follows from ``f̂^l_{-m} = (-1)^m conj(f̂^l_m)`` and
+Signals are real, so half of each spectrum is stored — non-negative frequency on the last grid
+axis (α on S2, γ on SO(3)) — and the rest follows from ``f̂^l_{-m} = (-1)^m conj(f̂^l_m)`` and
 ``f̂^l_{-m,-n} = (-1)^{m-n} conj(f̂^l_{mn})``:
 
 * S2 coefficients:    complex64 ``[..., L(l), L(m ≥ 0)]``
@@ -20,7 +20,9 @@ grid axis produces — and the rest follows from ``f̂^l_{-m} = (-1)^m conj(f̂^
 zero where ``|m| > l`` or ``n > l``. Grids are channels first (:mod:`so3`); every leading axis
 (batch, channel) is a batch axis here. The forward transforms take ``lmax=L ≤ B`` and so change
 band limit by truncation; the inverse transforms take the output bandwidth ``B ≥ L``.
-All tables are float64 numpy constants cast to float32, cached per size.
+All tables are float64 numpy constants cast to float32, cached per size. The layers use the
+real-arithmetic ``*_analysis`` / ``*_synthesis`` functions and their internal layouts directly;
+the complex functions are the interface for users and tests.
 """
 from __future__ import annotations
 
