@@ -20,6 +20,7 @@ import json
 import os
 import platform
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -175,6 +176,7 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
                 bundle.describe(down, kp, radius=0.3)
                 rec["describe_ms_per_kp"] = round(1e3 * (time.perf_counter() - t0) / len(kp), 3)
             records.append(rec)
+            print(json.dumps(rec), file=sys.stderr, flush=True)     # partial results survive
     return records
 
 
