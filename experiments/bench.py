@@ -198,6 +198,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--suite", choices=["layers", "patches", "models"], default="layers")
     parser.add_argument("--sizes", default="cpu,paper", help="models suite: config sizes")
+    parser.add_argument("--keypoints", type=int, default=5000,
+                        help="models suite: keypoints for the description timing")
     parser.add_argument("--json", action="store_true", help="print one JSON list of records")
     parser.add_argument("--batch", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=5)
@@ -206,7 +208,7 @@ def main(argv=None):
     if args.suite == "patches":
         records = run_patches(args.repeats)
     elif args.suite == "models":
-        records = run_models(tuple(args.sizes.split(",")), min(args.repeats, 3))
+        records = run_models(tuple(args.sizes.split(",")), min(args.repeats, 3), args.keypoints)
     else:
         records = run_layers(args.batch, args.repeats, args.only)
     if args.json:
