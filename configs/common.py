@@ -38,3 +38,9 @@ def base(size: str) -> ml_collections.ConfigDict:
         c.train.update(steps=3, batch_size=4, log_every=1, eval_every=2, eval_batches=1,
                        checkpoint_every=2)
     return c
+
+
+def decoder_kwargs(size: str) -> dict:
+    """Folding-decoder sizes shared by LEAD, LEAD-PN and SOUND ('paper': the model defaults)."""
+    return {"paper": {}, "cpu": dict(decoder_side=16, decoder_hidden=(256, 128, 64)),
+            "tiny": dict(decoder_side=6, decoder_hidden=(16, 16, 8))}[size]

@@ -14,11 +14,9 @@ def get_config(arg=None):
     c.model = "lead"
     c.train.batch_size = {"paper": 100, "cpu": 16, "tiny": 4}[size]
     c.model_kwargs = {
-        "paper": dict(bandwidths=(24, 16, 12, 8, 6, 4), features=(40, 40, 40, 40, 1),
-                      decoder_side=35),
-        "cpu": dict(bandwidths=(8, 6, 5, 4, 4, 4), features=(16, 16, 16, 16, 1),
-                    decoder_side=16, decoder_hidden=(256, 128, 64)),
-        "tiny": dict(bandwidths=(4, 4, 4, 4, 4, 4), features=(4, 4, 4, 4, 1), decoder_side=6,
-                     decoder_hidden=(16, 16, 8)),
+        "paper": dict(bandwidths=(24, 16, 12, 8, 6, 4), features=(40, 40, 40, 40, 1)),
+        "cpu": dict(bandwidths=(8, 6, 5, 4, 4, 4), features=(16, 16, 16, 16, 1)),
+        "tiny": dict(bandwidths=(4, 4, 4, 4, 4, 4), features=(4, 4, 4, 4, 1)),
     }[size]
+    c.model_kwargs.update(common.decoder_kwargs(size))
     return c

@@ -14,8 +14,9 @@ def get_config(arg=None):
     c.model = "lead_pn"
     c.train.batch_size = {"paper": 100, "cpu": 16, "tiny": 4}[size]
     c.model_kwargs = {
-        "paper": dict(features=(64, 128, 512), decoder_side=35),
-        "cpu": dict(features=(64, 128, 512), decoder_side=16, decoder_hidden=(256, 128, 64)),
-        "tiny": dict(features=(8, 8, 16), decoder_side=6, decoder_hidden=(16, 16, 8)),
+        "paper": dict(features=(64, 128, 512)),
+        "cpu": dict(features=(64, 128, 512)),
+        "tiny": dict(features=(8, 8, 16)),
     }[size]
+    c.model_kwargs.update(common.decoder_kwargs(size))
     return c

@@ -20,9 +20,9 @@ def get_config(arg=None):
                       lrf_bandwidths=(24, 24, 24, 24), lrf_features=(20, 10, 1)),
         "cpu": dict(s2_bandwidths=(8, 8), s2_features=16, descriptor_bandwidths=(8, 6, 5, 4),
                     descriptor_features=(16, 16, 1), lrf_bandwidths=(8, 8, 8),
-                    lrf_features=(8, 1), decoder_side=16, decoder_hidden=(256, 128, 64)),
+                    lrf_features=(8, 1)),
         "tiny": dict(s2_bandwidths=(4, 4), s2_features=4, descriptor_bandwidths=(4, 4, 4),
-                     descriptor_features=(4, 1), lrf_bandwidths=(4, 4, 4), lrf_features=(2, 1),
-                     decoder_side=6, decoder_hidden=(16, 16, 8)),
+                     descriptor_features=(4, 1), lrf_bandwidths=(4, 4, 4), lrf_features=(2, 1)),
     }[size]
+    c.model_kwargs.update(common.decoder_kwargs(size))
     return c

@@ -38,6 +38,11 @@ LAYERS = [
 ]
 
 
+def shared_data(*parts):
+    """A path in the real scans beside the project (``../shared/data``); may not exist."""
+    return os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", *parts)
+
+
 def _median_ms(fn, repeats):
     jax.block_until_ready(fn())                                      # warm-up
     times = []
@@ -110,8 +115,7 @@ def run_layers(batch=8, repeats=5, only=None):
 def run_patches(repeats=5):
     from sphere_jax import signal
     from sphere_jax.data import io, patches, synthetic
-    shared = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "3dmatch",
-                          "demo_fullres", "cloud_bin_0.ply")
+    shared = shared_data("3dmatch", "demo_fullres", "cloud_bin_0.ply")
     if os.path.isfile(shared):
         source, points = "3DMatch demo cloud_bin_0 (../shared/data)", io.read_ply(shared).points
     else:
@@ -144,8 +148,7 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
     from sphere_jax import api, training
     from sphere_jax.data import io, patches
     records = []
-    shared = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "3dmatch",
-                          "7-scenes-redkitchen", "cloud_bin_0.ply")
+    shared = shared_data("3dmatch", "7-scenes-redkitchen", "cloud_bin_0.ply")
     cloud = io.read_ply(shared).points if os.path.isfile(shared) else None
     for name in ("compass", "lead", "lead_pn", "sound"):
         for size in sizes:

@@ -35,16 +35,18 @@ def evaluate(bundle_path, data_root=None, n_keypoints=1000, radius=None, voxel=0
     rows = []
     for scene in scenes:
         row = {"scene": scene.name, "pairs": len(scene.pairs)}
+        fragments = registration.load_fragments(scene, voxel)
         if bundle.kind in ("lead", "lead_pn", "sound"):
             per_pair, recall = registration.feature_match_recall(
-                lambda p, k: bundle.describe(p, k, radius=radius), scene, voxel, n_keypoints)
+                lambda p, k: bundle.describe(p, k, radius=radius), scene, fragments, n_keypoints)
             row.update(fmr=recall, inlier_ratio=float(np.mean([r["inlier_ratio"]
                                                                for r in per_pair])))
         if bundle.kind in ("compass", "sound"):
             row["lrf_rep"] = registration.lrf_repeatability(
-                lambda p, k: bundle.orient(p, k, radius=radius), scene, voxel, n_keypoints // 2)
+                lambda p, k: bundle.orient(p, k, radius=radius), scene, fragments,
+                n_keypoints // 2, voxel)
             row["flare_rep"] = registration.lrf_repeatability(
-                flare_orient(radius), scene, voxel, n_keypoints // 2)
+                flare_orient(radius), scene, fragments, n_keypoints // 2, voxel)
         rows.append(row)
     return rows
 

@@ -22,8 +22,9 @@ import numpy as np
 import orbax.checkpoint as ocp
 from sklearn.neighbors import KDTree
 
-from sphere_jax import lrf, transforms
+from sphere_jax import lrf
 from sphere_jax.data import patches as patch_lib
+from sphere_jax.models.lead import canonical_descriptors
 
 
 FLARE_BATCH = jax.jit(jax.vmap(lrf.flare))
@@ -85,22 +86,16 @@ class Bundle:
         apply = lambda x, **kw: self.model.apply(self.variables, x, train=False, **kw)
         n = self.config.data.n_points
 
-        def oriented_descriptor(maps, frames):
-            canon = jax.vmap(transforms.rotate_so3)(maps, jnp.swapaxes(frames, 1, 2))
-            return canon.reshape(canon.shape[0], -1)
-
         def lead(x):
             pts, frames = x[:, :n * 3].reshape(-1, n, 3), x[:, n * 3:].reshape(-1, 3, 3)
             maps = self.model.apply(self.variables, pts, method="encode")
-            return oriented_descriptor(maps, frames)
+            return canonical_descriptors(maps, frames)
 
         def sound(x):
-            rot, maps, _ = apply(x)
-            return oriented_descriptor(maps, rot)
+            return self.model.apply(self.variables, x, method="describe")
 
         def lead_pn(x):
-            frames = jax.vmap(lrf.flare)(x)
-            return apply(jnp.einsum("bnk,bkj->bnj", x, frames))[0]
+            return apply(lrf.flare_orient(x))[0]
 
         self._orient_fn = jax.jit(lambda x: apply(x)[0])
         self._lead_fn, self._sound_fn, self._lead_pn_fn = map(jax.jit, (lead, sound, lead_pn))

@@ -5,6 +5,7 @@ An LRF is a 3×3 matrix whose columns are the local x̂, ŷ, ẑ axes in world c
 """
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 
 
@@ -33,3 +34,9 @@ def flare(patch_Nx3, radius=1.0, normal_radius=0.5, margin=0.85):
     x = p[best] - height[best] * z
     x = x / jnp.maximum(jnp.linalg.norm(x), 1e-12)
     return jnp.stack([x, jnp.cross(z, x), z], 1)
+
+
+def flare_orient(patches_BxNx3):
+    """Patches ``[B, N, 3]`` in their own FLARE frames (canonical coordinates ``p @ F``)."""
+    frames = jax.vmap(flare)(patches_BxNx3)
+    return jnp.einsum("bnk,bkj->bnj", patches_BxNx3, frames)

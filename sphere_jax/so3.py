@@ -8,8 +8,8 @@ Conventions (DESIGN.md §2), used by every other module:
 * SOFT / Driscoll–Healy grids of bandwidth B, 2B samples per axis:
   ``β_j = π(2j+1)/(4B)``, ``α_k = γ_k = 2πk/(2B)``.
   Layouts are **channels first**: S2 ``[..., C, 2B(β), 2B(α)]``, SO(3)
-  ``[..., C, 2B(β), 2B(α), 2B(γ)]``. Measured on the 2-core CPU: the 2-D FFT over the two last
-  (contiguous) axes is 3x faster than over axes followed by a channel axis.
+  ``[..., C, 2B(β), 2B(α), 2B(γ)]``. Measured on the 2-core CPU: transforms over the last
+  (contiguous) grid axes are about 3x faster than over axes followed by a channel axis.
 * Geodesic distance ``θ = arccos((tr(AᵀB) − 1)/2)``.
 
 Functions taking angles or matrices are jnp (jit/vmap/grad-able). Grid and quadrature builders

@@ -46,12 +46,6 @@ def build_model(config):
     raise ValueError(f"unknown model {config.model!r}")
 
 
-def flare_orient(patches):
-    """Patches in their FLARE frames (canonical coordinates ``p @ F``)."""
-    frames = jax.vmap(lrf.flare)(patches)
-    return jnp.einsum("bnk,bkj->bnj", patches, frames)
-
-
 def loss_fn(config, model, variables, batch, rng, train=True):
     """``(loss, (metrics, new batch_stats))`` for one batch."""
     def apply(x, **kw):
@@ -72,7 +66,7 @@ def loss_fn(config, model, variables, batch, rng, train=True):
             metrics["chamfer"] = chamfer
             loss = config.loss.chamfer_weight * chamfer + config.loss.angular_weight * angular
     elif m in ("lead", "lead_pn"):
-        x = batch["patches"] if m == "lead" else flare_orient(batch["patches"])
+        x = batch["patches"] if m == "lead" else lrf.flare_orient(batch["patches"])
         out, upd = apply(x)
         loss = jnp.mean(losses.chamfer_distance(out[1], x))
         metrics = {"chamfer": loss}

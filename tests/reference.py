@@ -35,6 +35,12 @@ def wigner_d_explicit_table(lmax: int, betas) -> np.ndarray:
     return out
 
 
+def rel_err(a, b):
+    """Relative L2 error of ``a`` against the reference ``b``."""
+    a, b = np.asarray(a), np.asarray(b)
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
 # ---- random band-limited coefficients of real signals (half spectra, as transforms stores) --
 
 def random_s2_coeffs(rng, lead, lmax):

@@ -3,10 +3,7 @@ import pytest
 
 from sphere_jax import correlation, transforms
 from tests import reference
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
+from tests.reference import rel_err
 
 
 @pytest.mark.parametrize("kind", ["near_identity", "equatorial"])

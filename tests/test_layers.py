@@ -5,10 +5,7 @@ import pytest
 
 from sphere_jax import correlation, layers, so3, transforms
 from tests import reference
-
-
-def rel_err(a, b):
-    return float(jnp.linalg.norm(a - b) / jnp.linalg.norm(b))
+from tests.reference import rel_err
 
 
 @pytest.mark.parametrize("b_in, b_out", [(8, 8), (16, 16), (16, 12)])

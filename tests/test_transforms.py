@@ -4,10 +4,7 @@ import pytest
 
 from sphere_jax import so3, transforms
 from tests import reference
-
-
-def rel_err(a, b):
-    return float(np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b)))
+from tests.reference import rel_err
 
 
 @pytest.mark.parametrize("b, lmax", [(8, 8), (16, 16), (12, 7)])

@@ -16,7 +16,7 @@ import re
 
 import numpy as np
 
-from sphere_jax.data.io import Cloud, DataError, _atomic_write, _check_exists, read_points
+from sphere_jax.data.io import Cloud, DataError, atomic_write, _check_exists, read_points
 
 
 # ----------------------------------------------------------------------------------------------
@@ -80,18 +80,28 @@ def read_gt_overlap(path):
     return out
 
 
+def format_matrix(m, end=""):
+    """Text rows of a matrix as the benchmark files write them (tab-separated, 8 decimals)."""
+    return ["\t".join(f"{v: .8e}" for v in row) + end for row in np.asarray(m)]
+
+
+def write_pair_blocks(path, matrices: dict, n_fragments: int):
+    """The gt.log / gt.info format: per pair ``(i, j)`` an ``i j n`` line, then the matrix."""
+    lines = []
+    for (i, j), m in sorted(matrices.items()):
+        lines.append(f"{i}\t {j}\t {n_fragments}\t")
+        lines.extend(format_matrix(m, "\t"))
+    atomic_write(path, ("\n".join(lines) + "\n").encode())
+
+
 def write_gt_log(path, transforms: dict, n_fragments: int):
     """Write ``{(i, j): T}`` in the gt.log format (``p_i = T p_j``)."""
-    lines = []
-    for (i, j), t in sorted(transforms.items()):
-        lines.append(f"{i}\t {j}\t {n_fragments}\t")
-        lines.extend("\t".join(f"{v: .8e}" for v in row) + "\t" for row in np.asarray(t))
-    _atomic_write(path, ("\n".join(lines) + "\n").encode())
+    write_pair_blocks(path, transforms, n_fragments)
 
 
 def write_gt_overlap(path, overlaps: dict):
     rows = [f"{i},{j},{r:.4f}" for (i, j), r in sorted(overlaps.items())]
-    _atomic_write(path, ("\n".join(rows) + "\n").encode())
+    atomic_write(path, ("\n".join(rows) + "\n").encode())
 
 
 def read_fragment_info(path):

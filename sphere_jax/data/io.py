@@ -265,10 +265,10 @@ def write_ply(path, points, normals=None, colors=None):
     if colors is not None:
         c = np.clip(np.round(np.asarray(colors) * 255), 0, 255).astype(np.uint8)
         arr["red"], arr["green"], arr["blue"] = c.T
-    _atomic_write(path, ("\n".join(header + ["end_header"]) + "\n").encode() + arr.tobytes())
+    atomic_write(path, ("\n".join(header + ["end_header"]) + "\n").encode() + arr.tobytes())
 
 
-def _atomic_write(path, data: bytes):
+def atomic_write(path, data: bytes):
     tmp = f"{path}.tmp{os.getpid()}"
     with open(tmp, "wb") as f:
         f.write(data)

@@ -28,6 +28,16 @@ ROOM_OBJECTS = ["cabinet", "table", "chair", "can", "ball", "ring", "blob", "lam
 TABLE_OBJECTS = ["can", "ball", "ring", "cone", "mug", "bottle", "bowl", "blob", "cabinet"]
 
 
+def _place(rng, radius, half_w, half_d, placed, tries=50):
+    """A centre for a footprint of ``radius`` inside ``[-half_w, half_w] × [-half_d, half_d]``
+    that overlaps no footprint in ``placed`` (rejection sampling); None if none was found."""
+    for _ in range(tries):
+        xy = rng.uniform([-half_w + radius, -half_d + radius], [half_w - radius, half_d - radius])
+        if all(np.linalg.norm(xy - p) > radius + r for p, r in placed):
+            return xy
+    return None
+
+
 def _rotate_z(mesh, angle):
     return mesh.rotate(o3d.geometry.get_rotation_matrix_from_xyz((0, 0, angle)), (0, 0, 0))
 
@@ -52,12 +62,8 @@ def make_room(rng):
                          rng.uniform(0, 2 * np.pi))
         ext = np.asarray(mesh.vertices)[:, :2]
         radius = np.linalg.norm(ext, axis=1).max()
-        # Along the walls or in the room, not overlapping what is there (rejection sampling).
-        for _ in range(50):
-            xy = rng.uniform([-w / 2 + radius, -d / 2 + radius], [w / 2 - radius, d / 2 - radius])
-            if all(np.linalg.norm(xy - p) > radius + r for p, r in placed):
-                break
-        else:
+        xy = _place(rng, radius, w / 2, d / 2, placed)
+        if xy is None:
             continue
         placed.append((xy, radius))
         meshes.append(mesh.translate((xy[0], xy[1], 0.0)))
@@ -125,8 +131,8 @@ def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, strid
         local = (pts[keep] - a[:3, 3]) @ a[:3, :3]
         io.write_ply(os.path.join(frag_dir, f"cloud_bin_{k}.ply"), local, colors=cols[keep])
         info = f"{name}\t seq-01\t {s}\t {s + frames_per_fragment - 1}\t\n" + "\n".join(
-            "\t".join(f"{v: .8e}" for v in row) + "\t" for row in a)
-        io._atomic_write(os.path.join(frag_dir, f"cloud_bin_{k}.info.txt"), (info + "\n").encode())
+            datasets.format_matrix(a, "\t"))
+        io.atomic_write(os.path.join(frag_dir, f"cloud_bin_{k}.info.txt"), (info + "\n").encode())
         fragments.append(local.astype(np.float32))
         frag_poses.append(a)
     n = len(fragments)
@@ -150,20 +156,12 @@ def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, strid
         os.makedirs(ev, exist_ok=True)
         pick = {p: transforms[p] for p in transforms if lo < overlaps[p] <= hi}
         datasets.write_gt_log(os.path.join(ev, "gt.log"), pick, n)
-        _write_info(os.path.join(ev, "gt.info"), {p: infos[p] for p in pick}, n)
+        datasets.write_pair_blocks(os.path.join(ev, "gt.info"), {p: infos[p] for p in pick}, n)
         datasets.write_gt_overlap(os.path.join(ev, "gt_overlap.log"),
                                   {p: overlaps[p] for p in pick})
     return {"name": name, "fragments": n, "pairs": len([p for p in overlaps
                                                          if overlaps[p] > 0.3]),
             "lo_pairs": len([p for p in overlaps if 0.1 < overlaps[p] <= 0.3])}
-
-
-def _write_info(path, infos, n):
-    lines = []
-    for (i, j), m in sorted(infos.items()):
-        lines.append(f"{i}\t {j}\t {n}\t")
-        lines.extend("\t".join(f"{v: .8e}" for v in row) + "\t" for row in m)
-    io._atomic_write(path, ("\n".join(lines) + "\n").encode())
 
 
 # ----------------------------------------------------------------------------------------------
@@ -184,11 +182,11 @@ def make_shapes(out_dir, seed, per_class=20, n_points=10000, test_fraction=0.25)
             pts = pts / np.linalg.norm(pts, axis=1).max()
             shape_id = f"{name}_{k + 1:04d}"
             rows = "\n".join(",".join(f"{v:.6f}" for v in r) for r in np.hstack([pts, nrm]))
-            io._atomic_write(os.path.join(out_dir, name, shape_id + ".txt"), (rows + "\n").encode())
+            io.atomic_write(os.path.join(out_dir, name, shape_id + ".txt"), (rows + "\n").encode())
             n_test = max(1, int(round(per_class * test_fraction))) if per_class > 1 else 0
             (test if k >= per_class - n_test else train).append(shape_id)
     for fname, items in (("shape_names.txt", names), ("train.txt", train), ("test.txt", test)):
-        io._atomic_write(os.path.join(out_dir, fname), ("\n".join(items) + "\n").encode())
+        io.atomic_write(os.path.join(out_dir, fname), ("\n".join(items) + "\n").encode())
     return {"classes": len(names), "train": len(train), "test": len(test)}
 
 
@@ -213,12 +211,8 @@ def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=cam.
             size, yaw = rng.uniform(0.12, 0.28), rng.uniform(0, 2 * np.pi)
             mesh = _rotate_z(shapes.make_object(name, rng).scale(size, (0, 0, 0)), yaw)
             radius = np.linalg.norm(np.asarray(mesh.vertices)[:, :2], axis=1).max()
-            for _ in range(50):
-                xy = rng.uniform([-tw / 2 + radius, -td / 2 + radius],
-                                 [tw / 2 - radius, td / 2 - radius])
-                if all(np.linalg.norm(xy - p) > radius + r for p, r in placed):
-                    break
-            else:
+            xy = _place(rng, radius, tw / 2, td / 2, placed)
+            if xy is None:
                 continue
             placed.append((xy, radius))
             mesh.translate((xy[0], xy[1], table_h))
@@ -253,14 +247,13 @@ def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=cam.
             _write_png(stem + ".color.png", color)
             _write_png(stem + ".depth.png", np.round(depth * 1000).astype(np.uint16))
             _write_png(stem + ".mask.png", mask)
-            io._atomic_write(stem + ".pose.txt", ("\n".join(
-                "\t".join(f"{x: .8e}" for x in row) for row in pose) + "\n").encode())
-            io._atomic_write(stem + ".labels.json", json.dumps(
+            io.atomic_write(stem + ".pose.txt",
+                            ("\n".join(datasets.format_matrix(pose)) + "\n").encode())
+            io.atomic_write(stem + ".labels.json", json.dumps(
                 {"instances": labels}, indent=1).encode())
             frame += 1
-    k = camera.intrinsics
-    io._atomic_write(os.path.join(out_dir, "camera-intrinsics.txt"), ("\n".join(
-        "\t".join(f"{x: .8e}" for x in row) for row in k) + "\n").encode())
+    io.atomic_write(os.path.join(out_dir, "camera-intrinsics.txt"),
+                    ("\n".join(datasets.format_matrix(camera.intrinsics)) + "\n").encode())
     return {"frames": frame}
 
 
@@ -286,7 +279,7 @@ def make_all(out_dir, seed=0, n_scenes=2, scene_kwargs=None, shape_kwargs=None,
                                     **(shape_kwargs or {}))
     summary["objects"] = make_object_frames(os.path.join(out_dir, "objects"), seed * 1000 + 202,
                                             **(object_kwargs or {}))
-    io._atomic_write(os.path.join(out_dir, "summary.json"), json.dumps(summary, indent=1).encode())
+    io.atomic_write(os.path.join(out_dir, "summary.json"), json.dumps(summary, indent=1).encode())
     return summary
 
 

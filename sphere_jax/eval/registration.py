@@ -27,27 +27,26 @@ def mutual_matches(desc_a, desc_b):
     return ia, ab[ia]
 
 
-def prepare(scene, voxel, n_keypoints, seed):
-    """Per fragment: voxel-downsampled points and random keypoint indices."""
-    out = {}
-    for k in scene.fragments:
-        pts = patches.voxel_downsample(scene.cloud(k).points, voxel)
-        out[k] = (pts, patches.random_keypoints(pts, n_keypoints,
-                                                np.random.default_rng([seed, k])))
-    return out
+def load_fragments(scene, voxel):
+    """Voxel-downsampled points of every fragment (read once, shared by the evaluations)."""
+    return {k: patches.voxel_downsample(scene.cloud(k).points, voxel) for k in scene.fragments}
 
 
-def feature_match_recall(describe, scene, voxel=0.02, n_keypoints=5000, tau1=0.10,
-                         tau2=0.05, seed=0):
-    """``describe(points, keypoint_indices) -> [K, D]``. Returns per-pair rows and the scene's
-    recall."""
-    frags = prepare(scene, voxel, n_keypoints, seed)
-    desc = {k: describe(*frags[k]) for k in scene.fragments}
+def _keypoints(points, k, n_keypoints, seed):
+    return patches.random_keypoints(points, n_keypoints, np.random.default_rng([seed, k]))
+
+
+def feature_match_recall(describe, scene, fragments, n_keypoints=5000, tau1=0.10, tau2=0.05,
+                         seed=0):
+    """``describe(points, keypoint_indices) -> [K, D]``; ``fragments`` from
+    :func:`load_fragments`. Returns per-pair rows and the scene's recall."""
+    kps = {k: _keypoints(p, k, n_keypoints, seed) for k, p in fragments.items()}
+    desc = {k: describe(fragments[k], kps[k]) for k in scene.fragments}
     rows = []
     for i, j in scene.pairs:
-        (pi, ki), (pj, kj) = frags[i], frags[j]
         ia, ib = mutual_matches(desc[i], desc[j])
-        err = np.linalg.norm(pi[ki[ia]] - _transform(pj[kj[ib]], scene.transforms[(i, j)]),
+        err = np.linalg.norm(fragments[i][kps[i][ia]]
+                             - _transform(fragments[j][kps[j][ib]], scene.transforms[(i, j)]),
                              axis=1)
         ratio = float(np.mean(err < tau1)) if len(err) else 0.0
         rows.append({"pair": (i, j), "matches": int(len(ia)), "inlier_ratio": ratio,
@@ -56,14 +55,14 @@ def feature_match_recall(describe, scene, voxel=0.02, n_keypoints=5000, tau1=0.1
     return rows, recall
 
 
-def lrf_repeatability(orient, scene, voxel=0.02, n_keypoints=1000, match_dist=None, rho=0.97,
+def lrf_repeatability(orient, scene, fragments, n_keypoints=1000, match_dist=0.02, rho=0.97,
                       seed=0):
-    """``orient(points, keypoint_indices) -> [K, 3, 3]``. Mean repeatability over pairs."""
-    match_dist = match_dist or voxel
-    frags = prepare(scene, voxel, n_keypoints, seed)
+    """``orient(points, keypoint_indices) -> [K, 3, 3]``; ``fragments`` from
+    :func:`load_fragments`. Mean repeatability over pairs."""
     reps = []
     for i, j in scene.pairs:
-        (pi, ki), (pj, _) = frags[i], frags[j]
+        pi, pj = fragments[i], fragments[j]
+        ki = _keypoints(pi, i, n_keypoints, seed)
         t = scene.transforms[(i, j)]
         pj_in_i = _transform(pj, t)
         dist, idx = NearestNeighbors(n_neighbors=1).fit(pj_in_i).kneighbors(pi[ki])

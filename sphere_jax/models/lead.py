@@ -10,10 +10,22 @@ from __future__ import annotations
 from typing import Sequence
 
 import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+from sphere_jax import transforms
 
 from sphere_jax.models.folding import FoldingDecoder
 from sphere_jax.models.pointnet import PointNetEncoder
 from sphere_jax.models.spherical import PatchSignal, SphericalStack
+
+
+def canonical_descriptors(maps_Nx2bx2bx2b, frames_Nx3x3):
+    """Descriptors ``[N, (2b)³]``: each SO(3) map rotated by the inverse of its LRF, so that
+    it no longer depends on the patch's orientation (spectral rotation, exact for the
+    band-limited maps)."""
+    canon = jax.vmap(transforms.rotate_so3)(maps_Nx2bx2bx2b, jnp.swapaxes(frames_Nx3x3, 1, 2))
+    return canon.reshape(canon.shape[0], -1)
 
 
 class Lead(nn.Module):

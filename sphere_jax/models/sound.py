@@ -14,8 +14,9 @@ from typing import Sequence
 import flax.linen as nn
 import jax
 
-from sphere_jax import layers, soft_argmax, transforms
+from sphere_jax import layers, soft_argmax
 from sphere_jax.models.folding import FoldingDecoder
+from sphere_jax.models.lead import canonical_descriptors
 from sphere_jax.models.spherical import PatchSignal, SphericalStack
 
 
@@ -60,5 +61,4 @@ class Sound(nn.Module):
     def describe(self, patches):
         """Self-oriented descriptors ``[N, 512]``: each map rotated by its LRF's inverse."""
         rot, maps, _ = self(patches, train=False)
-        canon = jax.vmap(transforms.rotate_so3)(maps, rot.transpose(0, 2, 1))
-        return canon.reshape(canon.shape[0], -1)
+        return canonical_descriptors(maps, rot)

@@ -4,7 +4,6 @@ from __future__ import annotations
 from typing import Sequence
 
 import flax.linen as nn
-import jax
 
 from sphere_jax import layers, signal
 
@@ -15,8 +14,7 @@ class PatchSignal(nn.Module):
     n_shells: int = 4
 
     def __call__(self, patches):
-        return jax.vmap(signal.patch_signal, (0, None, None, None))(
-            patches, 1.0, self.bandwidth, self.n_shells)
+        return signal.patch_signals(patches, 1.0, self.bandwidth, self.n_shells)
 
 
 class SphericalStack(nn.Module):
