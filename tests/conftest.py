@@ -6,7 +6,7 @@ SHARED = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "..", "s
                                        "data"))
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def shared():
     """Root of the real scans in ``../shared/data`` (skips where the checkout has none)."""
     if not os.path.isdir(SHARED):

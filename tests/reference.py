@@ -172,3 +172,88 @@ def _matrix_to_euler_np(rot):
     alpha = np.where(pole, np.arctan2(sign * rot[:, 1, 0], sign * rot[:, 0, 0]), alpha)
     gamma = np.where(pole, 0.0, gamma)
     return alpha, beta, gamma
+
+
+# ----------------------------------------------------------------------------------------------
+# Hand-crafted LRFs and descriptors, one keypoint at a time, written from the papers
+# ----------------------------------------------------------------------------------------------
+
+def _neighbours(points, centre, radius):
+    d = points - centre
+    r = np.linalg.norm(d, axis=1)
+    keep = (r <= radius) & (r > 0)
+    return d[keep], r[keep], np.nonzero(keep)[0]
+
+
+def _sign_by_majority(axis, d):
+    proj = d @ axis
+    votes = np.sum(proj >= 0) - np.sum(proj < 0)
+    if votes == 0:
+        votes = np.sum(proj)
+    return axis if votes >= 0 else -axis
+
+
+def shot_lrf_loop(points, centre, radius):
+    d, r, _ = _neighbours(points, centre, radius)
+    cov = sum((radius - ri) * np.outer(di, di) for di, ri in zip(d, r)) / np.sum(radius - r)
+    _, vecs = np.linalg.eigh(cov)
+    x = _sign_by_majority(vecs[:, 2], d)
+    z = _sign_by_majority(vecs[:, 0], d)
+    return np.stack([x, np.cross(z, x), z], 1)
+
+
+def toldi_lrf_loop(points, centre, radius):
+    d, r, _ = _neighbours(points, centre, radius)
+    inner = d[r <= radius / 3]
+    c = inner - inner.mean(0)
+    _, vecs = np.linalg.eigh(c.T @ c)
+    z = vecs[:, 0]
+    if np.sum(d @ z) > 0:
+        z = -z
+    x = np.zeros(3)
+    for di, ri in zip(d, r):
+        h = di @ z
+        x += ((radius - ri) * h) ** 2 * (di - h * z)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], 1)
+
+
+def _bin_votes(u, n, cyclic):
+    """(bin, weight) pairs of linear interpolation between bin centres at integers."""
+    lo = int(np.floor(u))
+    f = u - lo
+    out = []
+    for b, w in ((lo, 1 - f), (lo + 1, f)):
+        out.append((b % n if cyclic else min(max(b, 0), n - 1), w))
+    return out
+
+
+def shot_loop(points, normals, centre, radius, frame):
+    """SHOT of one keypoint: 32 volumes × 11 cosine bins, quadrilinear votes."""
+    d, r, idx = _neighbours(points, centre, radius)
+    hist = np.zeros((2, 2, 8, 11))                            # radial, elevation, azimuth, bin
+    for di, ri, k in zip(d, r, idx):
+        q = frame.T @ di
+        cos = np.clip(normals[k] @ frame[:, 2], -1, 1)
+        az = np.arctan2(q[1], q[0])
+        el = np.arctan2(q[2], np.hypot(q[0], q[1]))
+        for b, wb in _bin_votes((1 + cos) / 2 * 11 - 0.5, 11, False):
+            for a, wa in _bin_votes((az + np.pi) / (2 * np.pi) * 8 - 0.5, 8, True):
+                for e, we in _bin_votes((el + np.pi / 2) / np.pi * 2 - 0.5, 2, False):
+                    for s, ws in _bin_votes(ri / radius * 2 - 0.5, 2, False):
+                        hist[s, e, a, b] += wb * wa * we * ws
+    h = hist.reshape(-1)
+    return h / np.linalg.norm(h)
+
+
+def spin_image_loop(points, normal, centre, radius, width=8):
+    d, _, _ = _neighbours(points, centre, radius)
+    img = np.zeros((2 * width + 1, width + 1))                 # β rows, α columns
+    for di in d:
+        beta = di @ normal
+        alpha = np.sqrt(max(di @ di - beta ** 2, 0.0))
+        for row, wr in _bin_votes(beta / radius * width + width, 2 * width + 1, False):
+            for col, wc in _bin_votes(alpha / radius * width, width + 1, False):
+                img[row, col] += wr * wc
+    h = img.reshape(-1)
+    return h / np.linalg.norm(h)

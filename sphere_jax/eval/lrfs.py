@@ -1,0 +1,67 @@
+"""Hand-crafted local reference frames on exact neighbourhoods (vectorised numpy).
+
+Frames are ``[K, 3, 3]`` with columns x̂, ŷ, ẑ in world coordinates (the convention of
+:mod:`sphere_jax.lrf`, whose JAX FLARE the learned pipelines use on resampled patches).
+
+* SHOT (Tombari, Salti & Di Stefano 2010): eigenvectors of the covariance about the keypoint,
+  each neighbour weighted by ``R − d``; x̂ largest, ẑ smallest eigenvalue; each sign chosen so
+  that most neighbours lie on its positive side (the sum of projections breaks ties).
+* TOLDI (Yang, Zhang, Xiao & Cao 2017): ẑ is the normal of the neighbours within R/3 (PCA about
+  their centroid), turned so the neighbours lie below it (Σ dᵢ·ẑ ≤ 0); x̂ is the sum of the
+  neighbours' projections on the tangent plane weighted by ``((R − dᵢ)·(dᵢ·ẑ))²``.
+
+Keypoints with too few neighbours get NaN frames; callers count them as not repeatable.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sphere_jax.eval.neighbourhood import Neighbourhoods
+
+
+def _outer_sum(nb: Neighbourhoods, vectors_Mx3, weights_M):
+    outer = (weights_M[:, None, None] * vectors_Mx3[:, :, None]) * vectors_Mx3[:, None, :]
+    return nb.sum(outer)
+
+
+def _disambiguate(nb: Neighbourhoods, axes_Kx3):
+    """Flip each axis so that the majority of its keypoint's neighbours project positively."""
+    proj = np.sum(nb.local * axes_Kx3[nb.owner], axis=1)
+    votes = nb.sum(np.sign(proj)) + 1e-9 * np.sign(nb.sum(proj))
+    return np.where((votes < 0)[:, None], -axes_Kx3, axes_Kx3)
+
+
+def _frames(x_Kx3, z_Kx3, valid_K):
+    y = np.cross(z_Kx3, x_Kx3)
+    y /= np.maximum(np.linalg.norm(y, axis=1, keepdims=True), 1e-12)
+    x = np.cross(y, z_Kx3)                                    # exactly orthogonal to ẑ
+    frames = np.stack([x, y, z_Kx3], axis=2)
+    frames[~valid_K] = np.nan
+    return frames
+
+
+def shot_lrf(nb: Neighbourhoods, min_neighbours=5):
+    """SHOT's LRF for every keypoint of ``nb`` -> ``[K, 3, 3]``."""
+    w = np.maximum(nb.radius - nb.dist, 0.0)
+    cov = _outer_sum(nb, nb.local, w) / np.maximum(nb.sum(w), 1e-12)[:, None, None]
+    _, vecs = np.linalg.eigh(cov)                              # ascending eigenvalues
+    x = _disambiguate(nb, vecs[:, :, 2])
+    z = _disambiguate(nb, vecs[:, :, 0])
+    return _frames(x, z, nb.counts >= min_neighbours)
+
+
+def toldi_lrf(nb: Neighbourhoods, min_neighbours=5):
+    """TOLDI's LRF for every keypoint of ``nb`` -> ``[K, 3, 3]``."""
+    inner = nb.within(nb.radius / 3.0)
+    n_inner = np.maximum(inner.counts, 1)[:, None]
+    centroid = inner.sum(inner.local) / n_inner
+    centred = inner.local - centroid[inner.owner]
+    _, vecs = np.linalg.eigh(_outer_sum(inner, centred, np.ones(len(centred))))
+    z = vecs[:, :, 0]
+    z = np.where((np.sum(nb.sum(nb.local) * z, axis=1) > 0)[:, None], -z, z)
+    height = np.sum(nb.local * z[nb.owner], axis=1)
+    tangent = nb.local - height[:, None] * z[nb.owner]
+    w = ((nb.radius - nb.dist) * height) ** 2
+    x = nb.sum(w[:, None] * tangent)
+    x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
+    return _frames(x, z, (nb.counts >= min_neighbours) & (inner.counts >= 3))
