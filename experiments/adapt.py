@@ -21,21 +21,12 @@ def main(argv=None):
     parser.add_argument("--learning_rate", type=float, default=None)
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
-    bundle = api.load_bundle(args.bundle)
-    if bundle.kind not in ("compass", "sound"):
-        raise SystemExit(f"test-time adaptation is for compass and sound bundles, not "
-                         f"{bundle.kind!r}")
-    config = bundle.config
-    with config.unlocked():
-        config.data.root = args.data
-        config.train.steps = args.steps
-        config.train.checkpoint_every = max(1, min(config.train.checkpoint_every, args.steps))
-        config.train.eval_every = max(1, min(config.train.eval_every, args.steps))
-        config.train.log_every = max(1, min(config.train.log_every, args.steps))
-        if args.learning_rate:
-            config.train.learning_rate = args.learning_rate
-    _, last = training.train_and_evaluate(config, args.workdir, init_variables=bundle.variables)
-    print(f"adapted bundle in {args.workdir}/bundle: " + ", ".join(
+    try:
+        path, last = training.adapt(api.load_bundle(args.bundle), args.data, args.steps,
+                                    args.workdir, args.learning_rate)
+    except ValueError as e:
+        raise SystemExit(str(e)) from None
+    print(f"adapted bundle in {path}: " + ", ".join(
         f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
 
 

@@ -7,26 +7,12 @@ like. Running the same command again resumes from the newest checkpoint in the w
 from __future__ import annotations
 
 import os
-import re
 import sys
 
 from absl import app, flags
 from ml_collections import config_flags
 
-CONFIG_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                          "configs")
-
-
-def resolve_config_arg(argv):
-    """Rewrite ``--config=NAME[:ARG]`` to ``--config=<repo>/configs/NAME.py[:ARG]``."""
-    out = []
-    for a in argv:
-        m = re.fullmatch(r"--config=([A-Za-z_][A-Za-z0-9_]*)(:[A-Za-z0-9_]+)?", a)
-        if m:
-            a = f"--config={os.path.join(CONFIG_DIR, m.group(1) + '.py')}{m.group(2) or ''}"
-        out.append(a)
-    return out
-
+from configs import resolve_config_arg
 
 config_flags.DEFINE_config_file("config", None, "experiment config (name, name:size or path)")
 flags.DEFINE_string("workdir", None, "where checkpoints, metrics and the bundle go "

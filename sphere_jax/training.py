@@ -235,3 +235,23 @@ def evaluate(config, source, state, eval_step):
     vals = [eval_step(state, get_batch(config, source, 10_000_000 + k, "val"))
             for k in range(config.train.eval_batches)]
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}
+
+
+def adapt(bundle, data_root, steps, workdir, learning_rate=None, progress=True):
+    """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND ``bundle`` with its own
+    self-supervised loss on the scans under ``data_root``; the adapted bundle is written to
+    ``workdir/bundle`` (re-running resumes). Returns ``(path, last metrics)``."""
+    if bundle.kind not in ("compass", "sound"):
+        raise ValueError(f"test-time adaptation is for compass and sound bundles, not "
+                         f"{bundle.kind!r}")
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    config = ml_collections.ConfigDict(bundle.config.to_dict())
+    config.data.root = str(data_root)
+    config.train.steps = int(steps)
+    for key in ("checkpoint_every", "eval_every", "log_every"):
+        config.train[key] = max(1, min(config.train[key], steps))
+    if learning_rate:
+        config.train.learning_rate = float(learning_rate)
+    _, last = train_and_evaluate(config, workdir, progress, init_variables=bundle.variables)
+    return os.path.join(workdir, "bundle"), last

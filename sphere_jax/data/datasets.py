@@ -151,6 +151,7 @@ class FragmentScene:
     overlaps: dict
     info: dict
     n_fragments: int | None
+    skipped: tuple = ()          # ground-truth pairs whose clouds are missing
 
     @property
     def pairs(self):
@@ -186,14 +187,15 @@ def load_fragment_scene(fragment_dir, gt_dir=None) -> FragmentScene:
                                           "gt_dir")
     transforms, n = read_gt_log(os.path.join(gt_dir, "gt.log"))
     present = set(ks)
-    transforms = {p: t for p, t in transforms.items() if p[0] in present and p[1] in present}
+    skipped = tuple(sorted(p for p in transforms if p[0] not in present or p[1] not in present))
+    transforms = {p: t for p, t in transforms.items() if p not in skipped}
     optional = lambda name, fn: fn(os.path.join(gt_dir, name)) if os.path.isfile(
         os.path.join(gt_dir, name)) else {}
     overlaps = optional("gt_overlap.log", read_gt_overlap)
     info = optional("gt.info", read_gt_info)
     return FragmentScene(os.path.basename(fragment_dir), fragment_dir, ks, transforms,
                          {p: overlaps[p] for p in transforms if p in overlaps},
-                         {p: info[p] for p in transforms if p in info}, n)
+                         {p: info[p] for p in transforms if p in info}, n, skipped)
 
 
 # ----------------------------------------------------------------------------------------------

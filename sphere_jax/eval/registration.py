@@ -1,77 +1,157 @@
-"""Descriptor matching and LRF repeatability on fragment pairs (DESIGN.md §3, thesis 3.2, 4.3).
+"""Descriptor matching and registration on fragment pairs (DESIGN.md §3; seed 4.3).
 
-* Feature-match recall: keypoints of each fragment, mutual nearest neighbours in descriptor
-  space; a match is correct if ``‖p_i − T·p_j‖ < τ1`` (0.10 m); a pair is matched if more than
-  ``τ2`` (5 %) of its matches are correct; recall per scene.
-* LRF repeatability ("perfect detector"): keypoints of fragment i that have a point of j
-  within ``match_dist`` after the ground truth; the frame at i and the ground-truth-rotated frame
-  at that point of j are repeatable if both x̂ and ẑ agree to a dot product ≥ ρ (0.97).
+For each pair (i, j) with ground truth ``p_i = T p_j``:
+
+* mutual nearest neighbours in descriptor space (KD-trees, never a dense distance matrix);
+* a match is correct if ``‖p_i − T p_j‖ < τ1`` (0.10 m); inlier ratio = correct / matches;
+  the pair counts towards feature-match recall if its inlier ratio exceeds ``τ2`` (5 %);
+* RANSAC (open3d) on the matches estimates ``T̂``; ``RRE = arccos((tr(R̂ᵀR) − 1)/2)``,
+  ``RTE = ‖t̂ − t‖``; a pair is registered if RRE < 15° and RTE < 0.3 m (the usual 3DMatch
+  registration-recall thresholds).
+
+Per scene: FMR, mean inlier ratio, mean number of correct matches, registration recall, and
+RRE / RTE averaged over the registered pairs (over all pairs they would only measure failures).
 """
 from __future__ import annotations
 
+import dataclasses
+import time
+from typing import Callable
+
 import numpy as np
-from sklearn.neighbors import NearestNeighbors
+from scipy.spatial import cKDTree
+from tqdm.auto import tqdm
 
-from sphere_jax.data import patches
+from sphere_jax.eval import scenes as scene_lib
+
+TAU1, TAU2 = 0.10, 0.05
+RRE_OK_DEG, RTE_OK_M = 15.0, 0.30
 
 
-def _transform(points, t):
-    return points @ t[:3, :3].T + t[:3, 3]
-
-
-def mutual_matches(desc_a, desc_b):
+def mutual_matches(desc_a_KxD, desc_b_KxD):
     """Indices ``(ia, ib)`` of mutual nearest neighbours (Euclidean) between two sets."""
-    ab = NearestNeighbors(n_neighbors=1).fit(desc_b).kneighbors(desc_a)[1][:, 0]
-    ba = NearestNeighbors(n_neighbors=1).fit(desc_a).kneighbors(desc_b)[1][:, 0]
-    ia = np.nonzero(ba[ab] == np.arange(len(desc_a)))[0]
+    desc_a_KxD, desc_b_KxD = np.asarray(desc_a_KxD), np.asarray(desc_b_KxD)
+    if desc_a_KxD.ndim != 2 or desc_b_KxD.ndim != 2 or \
+            desc_a_KxD.shape[1] != desc_b_KxD.shape[1]:
+        raise ValueError(f"descriptors must be [K, D] with the same D, got {desc_a_KxD.shape} "
+                         f"and {desc_b_KxD.shape}")
+    if len(desc_a_KxD) == 0 or len(desc_b_KxD) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    ab = cKDTree(desc_b_KxD).query(desc_a_KxD, k=1, workers=-1)[1]
+    ba = cKDTree(desc_a_KxD).query(desc_b_KxD, k=1, workers=-1)[1]
+    ia = np.nonzero(ba[ab] == np.arange(len(desc_a_KxD)))[0]
     return ia, ab[ia]
 
 
-def load_fragments(scene, voxel):
-    """Voxel-downsampled points of every fragment (read once, shared by the evaluations)."""
-    return {k: patches.voxel_downsample(scene.cloud(k).points, voxel) for k in scene.fragments}
+def rre_rte(t_est, t_gt):
+    """Relative rotation error (degrees) and translation error (same unit as t)."""
+    r = t_est[:3, :3].T @ t_gt[:3, :3]
+    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.degrees(np.arccos(cos))), float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
 
 
-def _keypoints(points, k, n_keypoints, seed):
-    return patches.random_keypoints(points, n_keypoints, np.random.default_rng([seed, k]))
+def ransac(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000, seed=0):
+    """Rigid ``T̂`` with ``dst ≈ T̂ src`` from putative correspondences (row m of each), by
+    open3d's RANSAC with its edge-length and distance pre-checks. Identity if < 3 matches."""
+    import open3d as o3d
+    if len(points_dst_Mx3) < 3:
+        return np.eye(4)
+    o3d.utility.random.seed(int(seed))
+    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points_src_Mx3,
+                                                                         np.float64)))
+    dst = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points_dst_Mx3,
+                                                                         np.float64)))
+    corres = o3d.utility.Vector2iVector(np.repeat(np.arange(len(points_src_Mx3)), 2)
+                                        .reshape(-1, 2).astype(np.int32))
+    reg = o3d.pipelines.registration
+    result = reg.registration_ransac_based_on_correspondence(
+        src, dst, corres, max_distance, reg.TransformationEstimationPointToPoint(False), 3,
+        [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+         reg.CorrespondenceCheckerBasedOnDistance(max_distance)],
+        reg.RANSACConvergenceCriteria(int(iterations), 0.999))
+    return np.asarray(result.transformation)
 
 
-def feature_match_recall(describe, scene, fragments, n_keypoints=5000, tau1=0.10, tau2=0.05,
-                         seed=0):
-    """``describe(points, keypoint_indices) -> [K, D]``; ``fragments`` from
-    :func:`load_fragments`. Returns per-pair rows and the scene's recall."""
-    kps = {k: _keypoints(p, k, n_keypoints, seed) for k, p in fragments.items()}
-    desc = {k: describe(fragments[k], kps[k]) for k in scene.fragments}
-    rows = []
-    for i, j in scene.pairs:
-        ia, ib = mutual_matches(desc[i], desc[j])
-        err = np.linalg.norm(fragments[i][kps[i][ia]]
-                             - _transform(fragments[j][kps[j][ib]], scene.transforms[(i, j)]),
-                             axis=1)
-        ratio = float(np.mean(err < tau1)) if len(err) else 0.0
-        rows.append({"pair": (i, j), "matches": int(len(ia)), "inlier_ratio": ratio,
-                     "matched": ratio > tau2})
-    recall = float(np.mean([r["matched"] for r in rows])) if rows else float("nan")
-    return rows, recall
+def match_pair(frag_i, frag_j, desc_i, desc_j, t_gt, tau1=TAU1, ransac_distance=0.05,
+               ransac_iterations=50_000, seed=0):
+    """Metrics of one pair; ``errors`` (distance of every match under the ground truth) lets
+    callers recompute recall for any τ1/τ2."""
+    ia, ib = mutual_matches(desc_i, desc_j)
+    pi = frag_i.points[frag_i.keypoints[ia]]
+    pj = frag_j.points[frag_j.keypoints[ib]]
+    errors = np.linalg.norm(pi - scene_lib.transform(pj, t_gt), axis=1)
+    correct = errors < tau1
+    t_est = ransac(pi, pj, ransac_distance, ransac_iterations, seed)
+    rre, rte = rre_rte(t_est, t_gt)
+    return {"matches": int(len(ia)), "n_correct": int(correct.sum()),
+            "inlier_ratio": float(correct.mean()) if len(ia) else 0.0,
+            "rre_deg": rre, "rte_m": rte,
+            "registered": bool(rre < RRE_OK_DEG and rte < RTE_OK_M),
+            "errors": errors, "t_est": t_est}
 
 
-def lrf_repeatability(orient, scene, fragments, n_keypoints=1000, match_dist=0.02, rho=0.97,
-                      seed=0):
-    """``orient(points, keypoint_indices) -> [K, 3, 3]``; ``fragments`` from
-    :func:`load_fragments`. Mean repeatability over pairs."""
-    reps = []
-    for i, j in scene.pairs:
-        pi, pj = fragments[i], fragments[j]
-        ki = _keypoints(pi, i, n_keypoints, seed)
-        t = scene.transforms[(i, j)]
-        pj_in_i = _transform(pj, t)
-        dist, idx = NearestNeighbors(n_neighbors=1).fit(pj_in_i).kneighbors(pi[ki])
-        keep = dist[:, 0] < match_dist
-        if not keep.any():
-            continue
-        fi = orient(pi, ki[keep])
-        fj = t[:3, :3] @ orient(pj, idx[keep, 0])                  # j's frames, in i's frame
-        x_ok = np.sum(fi[:, :, 0] * fj[:, :, 0], 1) >= rho
-        z_ok = np.sum(fi[:, :, 2] * fj[:, :, 2], 1) >= rho
-        reps.append(float(np.mean(x_ok & z_ok)))
-    return float(np.mean(reps)) if reps else float("nan")
+def feature_match_recall(pair_rows, tau1=TAU1, tau2=TAU2):
+    """Fraction of pairs whose share of matches within ``tau1`` exceeds ``tau2``."""
+    if not pair_rows:
+        return float("nan")
+    ok = [np.mean(r["errors"] < tau1) > tau2 if len(r["errors"]) else False for r in pair_rows]
+    return float(np.mean(ok))
+
+
+def summarise(pair_rows, tau1=TAU1, tau2=TAU2):
+    """Scene-level numbers from :func:`match_pair` rows."""
+    reg = [r for r in pair_rows if r["registered"]]
+    mean = lambda key, rows: float(np.mean([r[key] for r in rows])) if rows else float("nan")
+    return {"pairs": len(pair_rows), "fmr": feature_match_recall(pair_rows, tau1, tau2),
+            "inlier_ratio": mean("inlier_ratio", pair_rows),
+            "n_correct": mean("n_correct", pair_rows),
+            "rr": float(len(reg) / len(pair_rows)) if pair_rows else float("nan"),
+            "rre_deg": mean("rre_deg", reg), "rte_m": mean("rte_m", reg)}
+
+
+@dataclasses.dataclass
+class SceneResult:
+    """One method on one scene: per-pair rows, the summary and the description time."""
+    method: str
+    scene: str
+    pairs: list
+    summary: dict
+    ms_per_keypoint: float
+
+
+def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
+                   prepare_kwargs=None, tau1=TAU1, tau2=TAU2, ransac_distance=0.05,
+                   ransac_iterations=50_000, seed=0, progress=True) -> list[SceneResult]:
+    """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``) on every pair
+    of ``pair_set``, on the same prepared fragments and keypoints."""
+    prepare_kwargs = dict(prepare_kwargs or {})
+    keys = sorted({k for p in pair_set.pairs for k in p}, key=pair_set.keys.index)
+    frags = {k: scene_lib.prepare(pair_set, k, seed=seed, **prepare_kwargs)
+             for k in tqdm(keys, desc=f"{pair_set.name}: prepare", disable=not progress)}
+    n_kp = sum(len(f.keypoints) for f in frags.values())
+    results = []
+    for name, describe in describers.items():
+        start = time.perf_counter()
+        desc = {k: np.asarray(describe(f), np.float32)
+                for k, f in tqdm(frags.items(), desc=f"{pair_set.name}: {name}",
+                                 disable=not progress)}
+        ms = 1000.0 * (time.perf_counter() - start) / max(n_kp, 1)
+        for k, d in desc.items():
+            if d.shape[0] != len(frags[k].keypoints) or not np.all(np.isfinite(d)):
+                raise ValueError(f"method {name!r} returned {d.shape} descriptors with "
+                                 f"non-finite values or a wrong count for scan {k}")
+        rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], desc[i], desc[j], t,
+                                               tau1, ransac_distance, ransac_iterations, seed))
+                for (i, j), t in pair_set.transforms.items()]
+        results.append(SceneResult(name, pair_set.name, rows, summarise(rows, tau1, tau2), ms))
+    return results
+
+
+def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
+    """``{method: [FMR averaged over scenes at each τ2]}`` (the seed's recall-vs-τ2 plot)."""
+    out = {}
+    for method in dict.fromkeys(r.method for r in results):
+        per_scene = [r for r in results if r.method == method]
+        out[method] = [float(np.mean([feature_match_recall(r.pairs, tau1, t2)
+                                      for r in per_scene])) for t2 in tau2_values]
+    return out

@@ -1,0 +1,45 @@
+"""Defaults shared by the evaluation configs (data preparation, bundles, output)."""
+from __future__ import annotations
+
+import os
+
+import ml_collections
+
+SIZES = ("", "quick", "tiny")
+CHECKPOINTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                           "checkpoints")
+
+
+def shipped(name):
+    path = os.path.join(CHECKPOINTS, name, "bundle")
+    return path if os.path.isdir(path) else ""
+
+
+def base(arg) -> ml_collections.ConfigDict:
+    size = arg or ""
+    if size not in SIZES:
+        raise ValueError(f"config argument must be one of {SIZES}, got {arg!r}")
+    c = ml_collections.ConfigDict()
+    c.size = size or "full"
+    c.seed = 0
+    c.data = ml_collections.ConfigDict(dict(
+        root="",              # empty: the embedded synthetic scenes; else 3DMatch/Stanford layout
+        voxel=0.02,           # 2 cm voxel grid (seed 4.3)
+        normal_k=17,          # normals from 17 neighbours
+        n_keypoints=5000,     # per scan, seeded random (release keypoint files win if present)
+        radius=0.30,          # support radius of every local method (3DMatch)
+        scenes="",            # comma-separated scene names to keep; empty: all
+        max_pairs=0,          # per scene; 0: every pair
+    ))
+    c.rotate = False          # the rotated variant: every scan turned by a seeded rotation
+    c.methods = ""
+    c.bundle = ""             # one bundle overriding the default of its kind
+    c.bundles = ml_collections.ConfigDict(dict(
+        lead=shipped("lead_cpu"), compass=shipped("compass_cpu"), lead_pn=shipped("lead_pn_cpu"),
+        sound=shipped("sound_cpu")))
+    c.chunk = 256
+    if size == "quick":
+        c.data.update(n_keypoints=1000, max_pairs=8)
+    elif size == "tiny":
+        c.data.update(n_keypoints=300, max_pairs=2, scenes="")
+    return c

@@ -1,0 +1,102 @@
+"""The methods the benchmarks compare, by the names used in tables and configs.
+
+Descriptors: ``describe(fragment) -> [K, D]`` for ``fragment.keypoints``; LRFs:
+``orient(fragment, indices) -> [K, 3, 3]``. Hand-crafted ones use the exact neighbourhoods
+(:mod:`neighbourhood`); learned ones load inference bundles (:mod:`sphere_jax.api`) and see
+the resampled unit patches they were trained on.
+
+=================  ==============================================================================
+``fpfh``           FPFH (open3d), 33-d
+``shot``           SHOT, 352-d, in the SHOT LRF
+``spin``           Spin Images, 153-d
+``lead``           LEAD's SO(3) descriptor turned to canonical pose by FLARE
+``lead_compass``   the same, turned by the Compass LRF (needs a compass bundle)
+``lead_pn``        LEAD-PN (PointNet on FLARE-oriented patches)
+``sound``          SOUND, self-oriented
+=================  ==============================================================================
+
+LRFs: ``flare`` (:func:`sphere_jax.lrf.flare` on the model's resampled patches, as LEAD uses
+it), ``shot``, ``toldi``, ``compass`` and ``sound`` (its Compass branch).
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from sphere_jax.eval import descriptors, lrfs
+from sphere_jax.eval.neighbourhood import radius_neighbourhoods
+from sphere_jax.eval.scenes import Fragment
+
+DESCRIPTORS = ("fpfh", "shot", "spin", "lead", "lead_compass", "lead_pn", "sound")
+LRFS = ("flare", "shot", "toldi", "compass", "sound")
+# Which bundle each learned method needs.
+BUNDLE_OF = {"lead": ("lead",), "lead_compass": ("lead", "compass"), "lead_pn": ("lead_pn",),
+             "sound": ("sound",), "compass": ("compass",)}
+FLARE_POINTS = 1225
+
+
+@functools.lru_cache(maxsize=16)
+def _bundle(path):
+    from sphere_jax import api
+    return api.load_bundle(path)
+
+
+def bundles_needed(names, bundles: dict):
+    """The methods among ``names`` whose bundles are missing from ``bundles`` (kind -> path)."""
+    return [n for n in names if any(not bundles.get(k) for k in BUNDLE_OF.get(n, ()))]
+
+
+def _neighbourhoods(frag: Fragment, indices, radius):
+    return radius_neighbourhoods(frag.points, frag.points[indices], radius, frag.tree)
+
+
+def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=256):
+    """``describe(fragment) -> [K, D]`` for method ``name`` with support ``radius`` (metres);
+    ``bundles`` maps a model kind (lead, compass, lead_pn, sound) to a bundle path."""
+    bundles = bundles or {}
+    if name not in DESCRIPTORS:
+        raise ValueError(f"unknown descriptor {name!r}; choose from {', '.join(DESCRIPTORS)}")
+    missing = bundles_needed([name], bundles)
+    if missing:
+        raise ValueError(f"descriptor {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
+    if name == "fpfh":
+        r = fpfh_radius or radius / 2
+        return lambda f: descriptors.fpfh(f.points, f.normals, f.keypoints, r)
+    if name == "shot":
+        return lambda f: descriptors.shot(_neighbourhoods(f, f.keypoints, radius), f.normals)
+    if name == "spin":
+        return lambda f: descriptors.spin_image(_neighbourhoods(f, f.keypoints, radius),
+                                                f.normals[f.keypoints])
+    if name == "lead_compass":
+        lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
+
+        def describe(f):
+            frames = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk)
+            return lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
+                                 frames=frames)
+        return describe
+    model = _bundle(bundles[name])
+    return lambda f: model.describe(f.points, f.keypoints, radius=radius, chunk=chunk)
+
+
+def lrf(name, radius, bundles=None, chunk=256):
+    """``orient(fragment, indices) -> [K, 3, 3]`` for LRF method ``name``."""
+    bundles = bundles or {}
+    if name not in LRFS:
+        raise ValueError(f"unknown LRF {name!r}; choose from {', '.join(LRFS)}")
+    if name == "flare":
+        from sphere_jax import api
+
+        def orient(f, idx):
+            p = api.extract_unit_patches(f.points, idx, radius, FLARE_POINTS)
+            return api.run_chunked(api.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
+        return orient
+    if name == "shot":
+        return lambda f, idx: lrfs.shot_lrf(_neighbourhoods(f, idx, radius))
+    if name == "toldi":
+        return lambda f, idx: lrfs.toldi_lrf(_neighbourhoods(f, idx, radius))
+    if bundles_needed([name], bundles):
+        raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
+    model = _bundle(bundles[name])
+    return lambda f, idx: np.asarray(model.orient(f.points, idx, radius=radius, chunk=chunk))

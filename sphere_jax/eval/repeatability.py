@@ -1,0 +1,102 @@
+"""LRF repeatability on scan pairs (DESIGN.md §3; seed 3.2).
+
+"Perfect detector": the keypoints of scan i that have a point of scan j within ``match_dist``
+under the ground truth correspond to those points. The two frames (j's mapped by the ground
+truth rotation) are repeatable if both x̂ and ẑ agree to a dot product ≥ ρ = 0.97; Rep is the
+repeatable fraction, averaged over pairs. The mean angle is the geodesic distance between the
+two frames. A frame a method could not compute (NaN) counts as not repeatable.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from sphere_jax.eval import scenes as scene_lib
+
+RHO = 0.97
+
+
+class FrameCache:
+    """Frames of one method per scan, computed once per point whatever the number of pairs
+    that ask for it."""
+
+    def __init__(self, orient: Callable):
+        self.orient = orient
+        self._frames, self._known = {}, {}
+
+    def __call__(self, frag: scene_lib.Fragment, idx):
+        idx = np.asarray(idx, np.int64)
+        if frag.key not in self._frames:
+            self._frames[frag.key] = np.full((len(frag.points), 3, 3), np.nan, np.float32)
+            self._known[frag.key] = np.zeros(len(frag.points), bool)
+        frames, known = self._frames[frag.key], self._known[frag.key]
+        todo = np.unique(idx[~known[idx]])
+        if len(todo):
+            frames[todo] = np.asarray(self.orient(frag, todo), np.float32).reshape(-1, 3, 3)
+            known[todo] = True
+        return frames[idx]
+
+
+def frame_angles_deg(a_Kx3x3, b_Kx3x3):
+    """Geodesic angle between corresponding frames, degrees (NaN where either is NaN)."""
+    cos = (np.einsum("kij,kij->k", a_Kx3x3, b_Kx3x3) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def correspondences(frag_i, frag_j, t_gt, match_dist):
+    """Keypoints of i in the overlap and their nearest points of j: ``(idx_i, idx_j)``."""
+    inv = np.linalg.inv(t_gt)
+    dist, idx = frag_j.tree.query(scene_lib.transform(frag_i.points[frag_i.keypoints], inv), k=1)
+    keep = dist[:, 0] < match_dist
+    return frag_i.keypoints[keep], idx[keep, 0]
+
+
+def pair_repeatability(orient, frag_i, frag_j, t_gt, match_dist, rho=RHO):
+    """``orient(fragment, indices) -> [K, 3, 3]``; one pair's keypoints, flags and scores."""
+    ki, kj = correspondences(frag_i, frag_j, t_gt, match_dist)
+    fi = np.asarray(orient(frag_i, ki), np.float64).reshape(-1, 3, 3)
+    fj = t_gt[:3, :3] @ np.asarray(orient(frag_j, kj), np.float64).reshape(-1, 3, 3)
+    with np.errstate(invalid="ignore"):
+        ok = (np.sum(fi[:, :, 0] * fj[:, :, 0], 1) >= rho) & \
+             (np.sum(fi[:, :, 2] * fj[:, :, 2], 1) >= rho)
+    angles = frame_angles_deg(fi, fj)
+    return {"keypoints": ki, "repeatable": ok, "n": int(len(ki)),
+            "rep": float(ok.mean()) if len(ki) else float("nan"),
+            "mean_angle_deg": float(np.nanmean(angles)) if np.isfinite(angles).any()
+            else float("nan")}
+
+
+@dataclasses.dataclass
+class LrfResult:
+    method: str
+    scene: str
+    pairs: list
+    summary: dict
+
+
+def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
+                   prepare_kwargs=None, match_dist=0.02, rho=RHO, seed=0, progress=True,
+                   fragments=None) -> list[LrfResult]:
+    """Every LRF method of ``orienters`` (name -> ``orient(fragment, indices)``) on every pair
+    of ``pair_set``; ``fragments`` (key -> :class:`Fragment`) skips the preparation."""
+    prepare_kwargs = dict(prepare_kwargs or {})
+    keys = sorted({k for p in pair_set.pairs for k in p}, key=pair_set.keys.index)
+    frags = fragments or {k: scene_lib.prepare(pair_set, k, seed=seed, **prepare_kwargs)
+                          for k in tqdm(keys, desc=f"{pair_set.name}: prepare",
+                                        disable=not progress)}
+    results = []
+    for name, orient in orienters.items():
+        cached = FrameCache(orient)
+        rows = [dict(pair=(i, j), **pair_repeatability(cached, frags[i], frags[j], t,
+                                                        match_dist, rho))
+                for (i, j), t in tqdm(pair_set.transforms.items(),
+                                      desc=f"{pair_set.name}: {name}", disable=not progress)]
+        valid = [r for r in rows if r["n"]]
+        mean = lambda key: float(np.nanmean([r[key] for r in valid])) if valid else float("nan")
+        results.append(LrfResult(name, pair_set.name, rows,
+                                 {"pairs": len(valid), "rep": mean("rep"),
+                                  "mean_angle_deg": mean("mean_angle_deg")}))
+    return results

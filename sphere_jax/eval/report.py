@@ -1,0 +1,126 @@
+"""Benchmark results as files: CSV for scripts, markdown tables like the seed's (rows =
+methods, columns = scenes + mean), and the PNG plots (matplotlib, headless)."""
+from __future__ import annotations
+
+import csv
+import io
+import os
+
+import numpy as np
+
+from sphere_jax.data.io import atomic_write
+
+REGISTRATION_COLUMNS = ("method", "scene", "pairs", "fmr", "inlier_ratio", "n_correct",
+                        "rre_deg", "rte_m", "ms_per_keypoint", "rr")
+LRF_COLUMNS = ("method", "scene", "pairs", "rep", "mean_angle_deg")
+REGISTRATION_TABLES = (("fmr", "Feature-match recall (τ1 = 0.10 m, τ2 = 0.05)", "{:.3f}"),
+                       ("inlier_ratio", "Inlier ratio", "{:.3f}"),
+                       ("n_correct", "Correct correspondences per pair", "{:.1f}"),
+                       ("rr", "Registration recall (RANSAC; RRE < 15°, RTE < 0.3 m)", "{:.3f}"),
+                       ("rre_deg", "RRE of registered pairs (degrees)", "{:.2f}"),
+                       ("rte_m", "RTE of registered pairs (m)", "{:.3f}"),
+                       ("ms_per_keypoint", "Description time (ms per keypoint)", "{:.3f}"))
+LRF_TABLES = (("rep", "LRF repeatability (ρ = 0.97)", "{:.3f}"),
+              ("mean_angle_deg", "Mean angle between corresponding LRFs (degrees)", "{:.1f}"))
+
+
+def _nanmean(values):
+    values = np.asarray([v for v in values], float)
+    return float(np.nanmean(values)) if np.isfinite(values).any() else float("nan")
+
+
+def with_means(rows, columns):
+    """``rows`` (dicts with method, scene, ...) plus one ``mean`` row per method: pairs summed,
+    every other number averaged over scenes."""
+    out = list(rows)
+    for method in dict.fromkeys(r["method"] for r in rows):
+        mine = [r for r in rows if r["method"] == method]
+        mean = {"method": method, "scene": "mean", "pairs": sum(r["pairs"] for r in mine)}
+        mean.update({c: _nanmean([r[c] for r in mine]) for c in columns[3:]})
+        out.append(mean)
+    return out
+
+
+def to_csv(rows, columns):
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(columns), extrasaction="ignore",
+                            lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({c: (f"{r[c]:.6g}" if isinstance(r[c], float) else r[c])
+                         for c in columns})
+    return buf.getvalue()
+
+
+def markdown_table(rows, key, fmt):
+    """Rows = methods, columns = scenes (then mean) for one metric."""
+    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean")) + ["mean"]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    cell = {(r["method"], r["scene"]): r[key] for r in rows}
+    lines = ["| method | " + " | ".join(scenes) + " |", "|---" * (len(scenes) + 1) + "|"]
+    for m in methods:
+        vals = [cell.get((m, s), float("nan")) for s in scenes]
+        lines.append(f"| {m} | " + " | ".join("–" if not np.isfinite(v) else fmt.format(v)
+                                             for v in vals) + " |")
+    return "\n".join(lines)
+
+
+def markdown_report(rows, tables, title):
+    parts = [f"# {title}"]
+    for key, caption, fmt in tables:
+        parts += ["", f"**{caption}**", "", markdown_table(rows, key, fmt)]
+    return "\n".join(parts) + "\n"
+
+
+def write_tables(workdir, rows, columns, tables, stem, title):
+    """``<stem>.csv`` and ``<stem>.md`` in ``workdir``; returns the markdown."""
+    rows = with_means(rows, columns)
+    md = markdown_report(rows, tables, title)
+    atomic_write(os.path.join(workdir, f"{stem}.csv"), to_csv(rows, columns).encode())
+    atomic_write(os.path.join(workdir, f"{stem}.md"), md.encode())
+    return md
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_fmr_curve(curve: dict, tau2_values, path, title="Feature-match recall vs τ2"):
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(5, 3.6), dpi=120)
+    for method, fmr in curve.items():
+        ax.plot(tau2_values, fmr, marker=".", label=method)
+    ax.set(xlabel="inlier-ratio threshold τ2", ylabel="feature-match recall", ylim=(-0.02, 1.02),
+           title=title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def plot_repeatability(points_Nx3, keypoints_Kx3, repeatable_K, path, title, max_points=20000,
+                       seed=0):
+    """Scan i in grey, its overlap keypoints green (repeatable LRF) or red (not), seen from
+    the sensor side (the seed's Fig. 3.4)."""
+    plt = _pyplot()
+    rng = np.random.default_rng(seed)
+    if len(points_Nx3) > max_points:
+        points_Nx3 = points_Nx3[rng.choice(len(points_Nx3), max_points, replace=False)]
+    fig = plt.figure(figsize=(5, 4.4), dpi=120)
+    ax = fig.add_subplot(projection="3d")
+    ax.scatter(*points_Nx3.T, s=0.3, c="0.7", alpha=0.4, depthshade=False)
+    for mask, colour, label in ((repeatable_K, "tab:green", "repeatable"),
+                                (~repeatable_K, "tab:red", "not repeatable")):
+        ax.scatter(*keypoints_Kx3[mask].T, s=4, c=colour, depthshade=False,
+                   label=f"{label} ({int(mask.sum())})")
+    ax.view_init(elev=-70, azim=-90)                           # camera looks along +z
+    ax.set_axis_off()
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="lower left", fontsize=7, markerscale=3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

@@ -1,0 +1,148 @@
+"""Benchmark inputs: sets of scans with ground-truth pair transforms, prepared the same way for
+every method (DESIGN.md §3: 2 cm voxel, normals from 17 neighbours, 5000 keypoints).
+
+A :class:`PairSet` is one 3DMatch-layout scene or one Stanford ``.conf`` scan set;
+:func:`find_pair_sets` recognises either under a root folder. :func:`prepare` turns each scan
+into a :class:`Fragment` (voxelised points, normals, keypoints), optionally rotated by a seeded
+random rotation about the origin (the "rotated 3DMatch" variant), with the ground truth
+rotated to match.
+"""
+from __future__ import annotations
+
+import dataclasses
+import glob
+import os
+import warnings
+from typing import Callable
+
+import numpy as np
+from sklearn.neighbors import KDTree
+
+from sphere_jax.data import augment, datasets, patches
+from sphere_jax.eval.neighbourhood import estimate_normals
+
+
+@dataclasses.dataclass
+class PairSet:
+    """Scans ``keys`` (read by ``load(key) -> [N, 3]``) and ``transforms[(i, j)]``: p_i = T p_j.
+    ``keypoints(key)`` gives release keypoint coordinates ``[K, 3]`` or None."""
+    name: str
+    keys: list
+    transforms: dict
+    load: Callable
+    keypoints: Callable = lambda key: None
+
+    @property
+    def pairs(self):
+        return sorted(self.transforms)
+
+
+@dataclasses.dataclass
+class Fragment:
+    """A prepared scan: ``points [N, 3]`` float32, unit ``normals [N, 3]``, ``keypoints [K]``
+    indices into ``points``; ``tree`` a KD-tree over ``points``."""
+    key: object
+    points: np.ndarray
+    normals: np.ndarray
+    keypoints: np.ndarray
+    tree: KDTree
+
+
+def transform(points, t):
+    """``points [N, 3]`` mapped by the 4×4 rigid transform ``t``."""
+    return points @ t[:3, :3].T + t[:3, 3]
+
+
+def fragment_scene(scene: datasets.FragmentScene) -> PairSet:
+    if scene.skipped:
+        warnings.warn(f"{scene.name}: {len(scene.skipped)} ground-truth pair(s) skipped, their "
+                      f"clouds are missing (partial download?)", stacklevel=2)
+
+    def keypoints(k):
+        path = os.path.join(scene.fragment_dir, f"cloud_bin_{k}_keypoints.txt")
+        if not os.path.isfile(path):
+            return None
+        cloud = scene.cloud(k).points
+        return cloud[datasets.read_keypoint_indices(path, len(cloud))]
+
+    return PairSet(scene.name, list(scene.fragments), dict(scene.transforms),
+                   lambda k: scene.cloud(k).points, keypoints)
+
+
+def stanford_scans(conf_path, voxel, min_overlap=0.10) -> PairSet:
+    """The scans of a Stanford ``.conf``; pairs whose overlap (fraction of either scan within
+    2 voxels of the other under the ground truth) exceeds ``min_overlap``, as the seed's
+    Stanford Views protocol."""
+    scans = datasets.load_stanford_scans(conf_path)
+    clouds = {k: patches.voxel_downsample(scans.cloud(k).points, voxel) for k in scans.names}
+    transforms = {}
+    for a, i in enumerate(scans.names):
+        for j in scans.names[a + 1:]:
+            t = scans.transform(i, j)
+            d, _ = KDTree(clouds[i]).query(transform(clouds[j], t), k=1)
+            if np.mean(d[:, 0] < 2 * voxel) > min_overlap:
+                transforms[(i, j)] = t
+    name = os.path.splitext(os.path.basename(str(conf_path)))[0]
+    return PairSet(name, scans.names, transforms, lambda k: scans.cloud(k).points)
+
+
+def find_pair_sets(root, voxel=0.02, min_overlap=0.10):
+    """Every scan set under ``root``: Stanford ``.conf`` files, a 3DMatch scene folder, or a
+    folder of such scenes (ground truth in ``<scene>-evaluation/`` or beside the clouds)."""
+    root = os.path.normpath(str(root))
+    if not os.path.isdir(root):
+        raise FileNotFoundError(f"data root {root!r} is not a folder")
+    confs = sorted(glob.glob(os.path.join(root, "*.conf")) +
+                   glob.glob(os.path.join(root, "*", "*.conf")))
+    if confs:
+        return [stanford_scans(c, voxel, min_overlap) for c in confs]
+    if glob.glob(os.path.join(root, "cloud_bin_*.ply")):
+        return [fragment_scene(datasets.load_fragment_scene(root))]
+    dirs = sorted(os.path.dirname(p) for p in glob.glob(os.path.join(root, "*",
+                                                                       "cloud_bin_0.ply")))
+    if not dirs:
+        raise FileNotFoundError(f"{root}: no Stanford .conf, no cloud_bin_K.ply fragments and "
+                                f"no scene folders holding them")
+    return [fragment_scene(datasets.load_fragment_scene(d)) for d in dirs]
+
+
+def rotations_for(pair_set: PairSet, seed):
+    """One seeded random rotation per scan (4×4), the same for every method."""
+    rng = np.random.default_rng([seed, sum(map(ord, pair_set.name))])
+    out = {}
+    for k in pair_set.keys:
+        t = np.eye(4)
+        t[:3, :3] = augment.random_rotations(rng)
+        out[k] = t
+    return out
+
+
+def rotate(pair_set: PairSet, seed) -> tuple[PairSet, dict]:
+    """The rotated variant: scan k turned by R_k about the origin, so p_i = R_i T R_jᵀ p_j."""
+    rot = rotations_for(pair_set, seed)
+    transforms = {(i, j): rot[i] @ t @ rot[j].T for (i, j), t in pair_set.transforms.items()}
+
+    def load(k):
+        return transform(pair_set.load(k), rot[k]).astype(np.float32)
+
+    def keypoints(k):
+        kp = pair_set.keypoints(k)
+        return None if kp is None else transform(kp, rot[k])
+
+    return PairSet(pair_set.name, pair_set.keys, transforms, load, keypoints), rot
+
+
+def prepare(pair_set: PairSet, key, voxel=0.02, n_keypoints=5000, normal_k=17, seed=0,
+            viewpoint=(0.0, 0.0, 0.0)) -> Fragment:
+    """Voxelise, estimate normals, pick keypoints: the release's (snapped to the nearest
+    voxelised point) or ``n_keypoints`` seeded random points."""
+    points = patches.voxel_downsample(pair_set.load(key), voxel)
+    normals = estimate_normals(points, normal_k, viewpoint)
+    tree = KDTree(points)
+    given = pair_set.keypoints(key)
+    if given is not None:
+        keypoints = tree.query(np.asarray(given, np.float64), k=1)[1][:, 0]
+    else:
+        rng = np.random.default_rng([seed, pair_set.keys.index(key)])
+        keypoints = patches.random_keypoints(points, n_keypoints, rng)
+    return Fragment(key, points, normals, keypoints, tree)
