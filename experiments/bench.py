@@ -8,6 +8,11 @@ Models suite (``--suite=models [--sizes=cpu,paper]``): forward and training-step
 config at its configured batch, and LEAD/SOUND description time per keypoint for 5000 keypoints
 of the 3DMatch kitchen fragment (when ``../shared/data`` is present).
 
+Registration suite (``--suite=registration``): one 3DMatch pair (kitchen 0–5 from
+``../shared/data``, else the first synthetic pair) with 5000 keypoints per fragment, evaluated
+end to end with FPFH, SHOT and LEAD (the shipped bundle): seconds per stage and in total,
+JIT compilation included — the issue's target is 60 s on 2 cores.
+
 Layers suite: every spherical layer of the seed's models at batch 8 — forward and
 forward+backward time (median of ``--repeats`` runs after warm-up), jit compile time, FLOPs of
 the per-degree spectral products and the GFLOP/s they reach alone, next to this machine's
@@ -183,6 +188,45 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
     return records
 
 
+def run_registration(keypoints=5000, methods=("fpfh", "shot", "lead")):
+    """Seconds per stage of one pair's evaluation, end to end (compilation included)."""
+    from configs import eval_common
+    from sphere_jax.data import datasets, pipeline
+    from sphere_jax.eval import methods as method_lib, registration, scenes
+    kitchen = shared_data("3dmatch", "7-scenes-redkitchen")
+    if os.path.isdir(kitchen):
+        pair_set = scenes.fragment_scene(datasets.load_fragment_scene(kitchen,
+                                                                      kitchen + "-evaluation"))
+        pair = (0, 5)
+    else:
+        pair_set = scenes.find_pair_sets(pipeline.default_scan_root())[0]
+        pair = pair_set.pairs[0]
+    bundles = {k: eval_common.shipped(f"{k}_cpu") for k in ("lead", "compass", "sound")}
+    records, total = [], time.perf_counter()
+
+    def stage(name, fn):
+        t0 = time.perf_counter()
+        out = fn()
+        records.append({"pair": f"{pair_set.name} {pair}", "stage": name,
+                        "seconds": round(time.perf_counter() - t0, 2)})
+        print(json.dumps(records[-1]), file=sys.stderr, flush=True)
+        return out
+
+    frags = stage("prepare (voxel, normals, keypoints)", lambda: {
+        k: scenes.prepare(pair_set, k, n_keypoints=keypoints) for k in pair})
+    for m in methods:
+        describe = method_lib.descriptor(m, 0.30, bundles, 0.15)
+        desc = stage(f"{m}: describe 2x{keypoints}", lambda: {k: describe(f)
+                                                            for k, f in frags.items()})
+        row = stage(f"{m}: match + RANSAC", lambda: registration.match_pair(
+            frags[pair[0]], frags[pair[1]], desc[pair[0]], desc[pair[1]],
+            pair_set.transforms[pair]))
+        records[-1]["seconds"] = f"{records[-1]['seconds']} (RRE {row['rre_deg']:.1f} deg)"
+    records.append({"pair": f"{pair_set.name} {pair}", "stage": "total",
+                    "seconds": round(time.perf_counter() - total, 2)})
+    return records
+
+
 def machine_line():
     return (f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPU cores, "
             f"jax {jax.__version__} ({jax.default_backend()})")
@@ -199,10 +243,10 @@ def format_table(records):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suite", choices=["layers", "patches", "models"], default="layers")
+    parser.add_argument("--suite", choices=["layers", "patches", "models", "registration"], default="layers")
     parser.add_argument("--sizes", default="cpu,paper", help="models suite: config sizes")
     parser.add_argument("--keypoints", type=int, default=5000,
-                        help="models suite: keypoints for the description timing")
+                        help="models/registration suites: keypoints per fragment")
     parser.add_argument("--json", action="store_true", help="print one JSON list of records")
     parser.add_argument("--batch", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=5)
@@ -210,6 +254,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.suite == "patches":
         records = run_patches(args.repeats)
+    elif args.suite == "registration":
+        records = run_registration(args.keypoints)
     elif args.suite == "models":
         records = run_models(tuple(args.sizes.split(",")), min(args.repeats, 3), args.keypoints)
     else:
