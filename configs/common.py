@@ -18,7 +18,7 @@ def base(size: str) -> ml_collections.ConfigDict:
     c.seed = 0
     c.size = size
     c.data = ml_collections.ConfigDict(dict(
-        root="",                  # empty: the embedded synthetic scans (generated on first use)
+        root="",                  # folders, comma-separated; '' or 'embedded': the synthetic scans
         voxel=0.02,               # fragments voxel-downsampled at 2 cm (seed 4.3)
         keypoint_leaf=0.10,       # one keypoint every 10 cm (seed 3.1.5)
         radius=0.30,              # support radius (3DMatch)

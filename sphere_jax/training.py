@@ -89,8 +89,7 @@ def build_source(config):
     if config.model == "classify":
         root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
         return pipeline.ShapeSource(root, d.n_points, config.seed)
-    root = d.root or pipeline.default_scan_root()
-    return pipeline.PatchSource(pipeline.find_scans(root), d.voxel, d.keypoint_leaf, d.radius,
+    return pipeline.PatchSource(pipeline.scan_paths(d.root), d.voxel, d.keypoint_leaf, d.radius,
                                 d.n_points, d.min_points, d.val_fraction, config.seed)
 
 

@@ -30,6 +30,15 @@ def find_scans(root):
     return found
 
 
+def scan_paths(roots):
+    """Scan files of a comma-separated list of folders; ``embedded`` (or an empty list) stands
+    for the default synthetic scans, so real scans can be added to them:
+    ``embedded,/data/3dmatch/demo``."""
+    names = [r.strip() for r in str(roots).split(",") if r.strip()] or ["embedded"]
+    return [p for r in names
+            for p in find_scans(default_scan_root() if r == "embedded" else r)]
+
+
 def default_scan_root():
     return os.path.join(synthetic.ensure_default_data(), "3dmatch")
 
