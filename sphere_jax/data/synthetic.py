@@ -244,9 +244,9 @@ def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=cam.
                                "box": [int(uu.min()), int(vv.min()), int(uu.max()), int(vv.max())],
                                "pose": inst["pose"]})
             stem = os.path.join(out_dir, f"frame-{frame:06d}")
-            _write_png(stem + ".color.png", color)
-            _write_png(stem + ".depth.png", np.round(depth * 1000).astype(np.uint16))
-            _write_png(stem + ".mask.png", mask)
+            write_png(stem + ".color.png", color)
+            write_png(stem + ".depth.png", np.round(depth * 1000).astype(np.uint16))
+            write_png(stem + ".mask.png", mask)
             io.atomic_write(stem + ".pose.txt",
                             ("\n".join(datasets.format_matrix(pose)) + "\n").encode())
             io.atomic_write(stem + ".labels.json", json.dumps(
@@ -257,7 +257,7 @@ def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=cam.
     return {"frames": frame}
 
 
-def _write_png(path, array):
+def write_png(path, array):
     tmp = path + ".tmp.png"
     if not o3d.io.write_image(tmp, o3d.geometry.Image(np.ascontiguousarray(array))):
         raise OSError(f"could not write {path}")
@@ -302,5 +302,18 @@ def ensure_default_data(seed=0, out_dir=None):
     tmp = f"{out_dir}.partial{os.getpid()}"
     make_all(tmp, seed)
     os.makedirs(os.path.dirname(out_dir) or ".", exist_ok=True)
+    os.replace(tmp, out_dir)
+    return out_dir
+
+
+def ensure_default_objects(seed=0):
+    """Synthetic object crops in the Washington RGB-D layout (``washington/`` beside the
+    default data), generated on first use and moved into place when complete."""
+    from sphere_jax.data import washington
+    out_dir = os.path.join(ensure_default_data(seed), "washington")
+    if os.path.isfile(os.path.join(out_dir, "camera-intrinsics.txt")):
+        return out_dir
+    tmp = f"{out_dir}.partial{os.getpid()}"
+    washington.make_synthetic(tmp, seed * 1000 + 303)
     os.replace(tmp, out_dir)
     return out_dir

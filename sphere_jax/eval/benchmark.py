@@ -152,7 +152,11 @@ def run(config, workdir, progress=True):
         return run_registration(config, workdir, progress)
     if config.task == "lrf":
         return run_lrf(config, workdir, progress)
-    raise ValueError(f"config.task must be 'registration' or 'lrf', got {config.task!r}")
+    if config.task == "objects":
+        from sphere_jax.eval import objects
+        return objects.run(config, workdir, progress)
+    raise ValueError(f"config.task must be 'registration', 'lrf' or 'objects', got "
+                     f"{config.task!r}")
 
 
 def mean_rows(rows):
