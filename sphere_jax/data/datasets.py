@@ -330,3 +330,47 @@ def read_rgbd_frame(color_path, depth_path, intrinsics, pose=None, depth_scale=1
         raise DataError(depth_path, f"depth must be a 16-bit image, got {depth.dtype}")
     color = _read_image(color_path) if color_path is not None else None
     return depth_to_cloud(depth, intrinsics, color, pose, depth_scale, depth_trunc)
+
+
+@dataclasses.dataclass
+class ObjectFrame:
+    """A labelled RGB-D frame of objects (the synthetic table-top layout): ``color [H, W, 3]``,
+    ``depth [H, W]`` uint16 mm, ``mask [H, W]`` instance ids, camera-to-world ``pose``, and
+    ``instances``: dicts with ``id``, ``category``, ``box [u0, v0, u1, v1]`` and the 4×4
+    object-to-world ``pose`` (rotation × scale, translation)."""
+    name: str
+    color: np.ndarray
+    depth: np.ndarray
+    mask: np.ndarray
+    pose: np.ndarray
+    intrinsics: np.ndarray
+    instances: list
+
+    def points(self, depth_scale=1000.0):
+        """``(points [M, 3] camera frame, pixels [M, 2] as (v, u))`` of the valid depth."""
+        v, u = np.nonzero(self.depth > 0)
+        cloud = depth_to_cloud(self.depth, self.intrinsics, depth_scale=depth_scale)
+        return cloud.points, np.stack([v, u], 1)
+
+
+def read_object_frames(folder) -> list[ObjectFrame]:
+    """Every ``frame-N`` of a folder written by :func:`sphere_jax.data.synthetic.make_object_frames`
+    (``.color.png``, ``.depth.png``, ``.mask.png``, ``.pose.txt``, ``.labels.json``)."""
+    import json
+    folder = str(folder)
+    k = read_intrinsics(os.path.join(folder, "camera-intrinsics.txt"))
+    stems = sorted(p[:-len(".labels.json")]
+                   for p in glob.glob(os.path.join(folder, "frame-*.labels.json")))
+    if not stems:
+        raise DataError(folder, "no frame-N.labels.json object frames")
+    out = []
+    for s in stems:
+        with open(s + ".labels.json") as f:
+            try:
+                labels = json.load(f)["instances"]
+            except (ValueError, KeyError) as e:
+                raise DataError(s + ".labels.json", f"expected {{'instances': [...]}} ({e})")
+        out.append(ObjectFrame(os.path.basename(s), _read_image(s + ".color.png")[..., :3],
+                               _read_image(s + ".depth.png"), _read_image(s + ".mask.png"),
+                               read_pose(s + ".pose.txt"), k, labels))
+    return out

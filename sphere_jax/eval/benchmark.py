@@ -155,8 +155,11 @@ def run(config, workdir, progress=True):
     if config.task == "objects":
         from sphere_jax.eval import objects
         return objects.run(config, workdir, progress)
-    raise ValueError(f"config.task must be 'registration', 'lrf' or 'objects', got "
-                     f"{config.task!r}")
+    if config.task == "recognition":
+        from sphere_jax.eval import recognition
+        return recognition.run(config, workdir, progress)
+    raise ValueError(f"config.task must be one of registration, lrf, objects, recognition; "
+                     f"got {config.task!r}")
 
 
 def mean_rows(rows):

@@ -124,3 +124,31 @@ def plot_repeatability(points_Nx3, keypoints_Kx3, repeatable_K, path, title, max
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def plot_recognition(rows, curves, workdir):
+    """``pr_curves.png`` (precision vs recall per method, plain and boosted) and
+    ``time_vs_auc.png`` (time per frame against AUC, the seed's trade-off plot)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(5, 3.8), dpi=120)
+    for (method, boost), (p, r) in curves.items():
+        ax.plot(r, p, ls="-" if boost else "--",
+                label=f"{method}{' + boost' if boost else ''}")
+    ax.set(xlabel="recall", ylabel="precision", xlim=(0, 1), ylim=(0, 1.02),
+           title="Recognition precision–recall")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(workdir, "pr_curves.png"))
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(5, 3.8), dpi=120)
+    for r in rows:
+        ax.scatter(r["total_s"], r["auc"], marker="o" if r["boost"] else "x")
+        ax.annotate(f"{r['method']}{' + boost' if r['boost'] else ''}",
+                    (r["total_s"], r["auc"]), fontsize=7, xytext=(3, 3),
+                    textcoords="offset points")
+    ax.set(xlabel="seconds per frame", ylabel="AUC", title="Time vs AUC")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(workdir, "time_vs_auc.png"))
+    plt.close(fig)
