@@ -27,6 +27,12 @@ def main(_):
     if config is None:
         raise app.UsageError("--config is required, e.g. --config=sound:cpu")
     workdir = flags.FLAGS.workdir or os.path.join("runs", f"{config.model}_{config.size}")
+    if config.model == "classify" and config.get("methods"):
+        from sphere_jax.eval import classification
+        _, md = classification.run(config, workdir)      # trains every method, scores NR/AR
+        print(md)
+        print(f"finished in {workdir}")
+        return
     _, last = training.train_and_evaluate(config, workdir)
     print(f"finished in {workdir}: " + ", ".join(f"{k}={v:.4g}" for k, v in last.items()
                                                   if isinstance(v, float)))

@@ -61,6 +61,13 @@ class Bundle:
         return self._chunked(self._orient_fn, self.patches(points, keypoints, radius, seed),
                              chunk)
 
+    def orient_patches(self, patches_KxNx3, chunk=256):
+        """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
+        :func:`sphere_jax.data.pipeline.unit_shapes`)."""
+        if self.kind not in ("compass", "sound"):
+            raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
+        return self._chunked(self._orient_fn, np.asarray(patches_KxNx3, np.float32), chunk)
+
     def describe(self, points, keypoints, radius=None, chunk=256, seed=0, frames=None):
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
         ``frames`` (``[K, 3, 3]``, e.g. from a Compass bundle) or, by default, FLARE; LEAD-PN:

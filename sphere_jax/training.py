@@ -86,7 +86,7 @@ def loss_fn(config, model, variables, batch, rng, train=True):
 
 def build_source(config):
     d = config.data
-    if config.model == "classify":
+    if config.model == "classify" or d.get("shapes", False):
         root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
         return pipeline.ShapeSource(root, d.n_points, config.seed)
     return pipeline.PatchSource(pipeline.scan_paths(d.root), d.voxel, d.keypoint_leaf, d.radius,
@@ -95,11 +95,34 @@ def build_source(config):
 
 def get_batch(config, source, step, split="train"):
     bs = config.train.batch_size
-    if config.model == "classify":
-        return source.batch(step, bs, "test" if split == "val" else split,
-                            rotate=config.data.get("rotate", False))
+    if isinstance(source, pipeline.ShapeSource):
+        split = "test" if split == "val" else split
+        if config.model != "classify":                        # Compass on whole shapes
+            return source.batch(step, bs, split, copies=True, occlusion=config.data.occlusion)
+        batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
+        if config.get("orient_bundle"):
+            batch["points"] = orient_shapes(_orienter(config.orient_bundle), batch["points"])
+        return batch
     return source.batch(step, bs, split, copies=config.model in ("compass", "sound"),
                         occlusion=config.data.occlusion)
+
+
+@functools.lru_cache(maxsize=4)
+def _orienter(path):
+    from sphere_jax import api
+    return api.load_bundle(path)
+
+
+def orient_shapes(bundle, shapes_BxNx3):
+    """Shapes turned into the canonical frame a Compass bundle (trained on whole shapes)
+    gives them: ``(p − centre) @ F``, in the shapes' own units."""
+    shapes_BxNx3 = np.asarray(shapes_BxNx3, np.float32)
+    n = bundle.config.data.n_points
+    rng = np.random.default_rng(0)
+    pick = rng.integers(0, shapes_BxNx3.shape[1], n)            # the network's point count
+    unit, centres = pipeline.unit_shapes(shapes_BxNx3)
+    frames = np.asarray(bundle.orient_patches(unit[:, pick], chunk=min(len(unit), 256)))
+    return np.einsum("bnk,bkj->bnj", shapes_BxNx3 - centres, frames).astype(np.float32)
 
 
 # ----------------------------------------------------------------------------------------------

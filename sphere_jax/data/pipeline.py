@@ -87,15 +87,31 @@ class PatchSource:
             out[rows] = got.points / self.radius
         result = {"patches": out}
         if copies:
-            rots = augment.random_rotations(rng, batch_size)
-            cop = np.empty_like(out)
-            for b in range(batch_size):
-                rotated = augment.rotate(out[b], rots[b])
-                if occlusion:
-                    rotated = augment.occlude(rotated, 1.0, rng)
-                cop[b] = augment.resample(rotated, self.n_points, rng)
-            result.update(copies=cop, rotations=rots.astype(np.float32))
+            result.update(rotated_copies(out, rng, occlusion))
         return result
+
+
+def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True):
+    """Each unit patch rotated by a random rotation, occluded (seed 3.1.5) and resampled to N
+    points: ``{'copies': [B, N, 3], 'rotations': [B, 3, 3]}`` — Compass's training pairs."""
+    b, n, _ = patches_BxNx3.shape
+    rots = augment.random_rotations(rng, b)
+    cop = np.empty_like(patches_BxNx3)
+    for k in range(b):
+        rotated = augment.rotate(patches_BxNx3[k], rots[k])
+        if occlusion:
+            rotated = augment.occlude(rotated, 1.0, rng)
+        cop[k] = augment.resample(rotated, n, rng)
+    return {"copies": cop, "rotations": rots.astype(np.float32)}
+
+
+def unit_shapes(shapes_BxNx3):
+    """Whole shapes as unit patches (DESIGN.md §3, ModelNet): centred on the bounding-box
+    centre, in units of half the largest bounding-box side. Returns ``(patches, centres)``."""
+    lo, hi = shapes_BxNx3.min(1, keepdims=True), shapes_BxNx3.max(1, keepdims=True)
+    centres = (lo + hi) / 2
+    half = np.max(hi - lo, axis=2, keepdims=True) / 2
+    return ((shapes_BxNx3 - centres) / np.maximum(half, 1e-9)).astype(np.float32), centres
 
 
 class ShapeSource:
@@ -126,7 +142,11 @@ class ShapeSource:
         if not self.splits["train"][0]:
             raise ValueError(f"no training shapes found under {root!r}")
 
-    def batch(self, step, batch_size, split="train", rotate=False):
+    def batch(self, step, batch_size, split="train", rotate=False, copies=False,
+              occlusion=True):
+        """``{'points': [B, N, 3], 'labels': [B]}`` (``rotate``: each shape randomly rotated);
+        with ``copies``, Compass's training batch on whole shapes instead: ``'patches'`` (unit
+        shapes), ``'copies'`` and ``'rotations'``."""
         shapes, labels = self.splits[split]
         if not shapes:
             raise ValueError(f"the {split!r} split of the shape set is empty")
@@ -135,6 +155,9 @@ class ShapeSource:
         pts = np.stack([shapes[i][rng.choice(len(shapes[i]), self.n_points,
                                              replace=len(shapes[i]) < self.n_points)]
                         for i in pick]).astype(np.float32)
+        if copies:
+            unit = unit_shapes(pts)[0]
+            return {"patches": unit, **rotated_copies(unit, rng, occlusion)}
         if rotate:
             pts = np.einsum("bij,bnj->bni", augment.random_rotations(rng, batch_size), pts)
         return {"points": pts.astype(np.float32), "labels": labels[pick]}

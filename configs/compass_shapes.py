@@ -1,0 +1,18 @@
+"""Compass on whole shapes: the canonical-orientation network of the rotation-invariant
+classification experiment (thesis 3.3). Each shape is one patch (centred on its bounding box,
+radius half its largest side; 2048 points at 'paper' size), trained with Compass's
+self-supervised loss on the embedded shape set (or any ModelNet40 folder).
+
+    python -m experiments.train --config=compass_shapes:cpu --workdir=runs/compass_shapes_cpu
+
+Expected: the geodesic loss falls well below its ~2 rad start within the 'cpu' budget; the
+bundle then orients shapes for ``--config=classify``.
+"""
+from configs import common, compass
+
+
+def get_config(arg=None):
+    c = compass.get_config(arg)
+    c.data.shapes = True
+    c.data.n_points = {"paper": 2048, "cpu": 512, "tiny": 64}[c.size]
+    return c

@@ -1,0 +1,27 @@
+"""Rotation-invariant classification: Compass + PointNet keeps its accuracy under rotation,
+plain PointNet does not (embedded shapes, shipped whole-shape Compass)."""
+import csv
+
+from configs import classify
+from sphere_jax.eval import classification
+
+
+def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
+    c = classify.get_config("tiny")
+    c.data.n_points = 256
+    c.train.update(steps=400, batch_size=16, log_every=100, eval_every=400,
+                   checkpoint_every=400)
+    c.model_kwargs = dict(features=(32, 32, 64), head=(32,))
+    rows, md = classification.run(c, str(tmp_path), progress=False)
+    print(md)
+    acc = {(r["method"], r["split"]): r["accuracy"] for r in rows}
+    with open(tmp_path / "classification.csv") as f:
+        assert [r["split"] for r in csv.DictReader(f)] == ["NR", "AR", "NR", "AR"]
+    assert acc[("pointnet", "NR")] > 0.4                          # chance: 1/12
+    assert acc[("pointnet", "AR")] < acc[("pointnet", "NR")] - 0.2   # plain PointNet drops
+    # The stated margin: the small shipped Compass (validation geodesic error 1.04 rad, many
+    # shapes are symmetric) keeps at least 40 % of the accuracy plain PointNet loses — measured
+    # here: a drop of 0.37 against 0.73 — and beats it in AR by 0.2 or more.
+    compass_drop = acc[("compass+pointnet", "NR")] - acc[("compass+pointnet", "AR")]
+    assert compass_drop < 0.6 * (acc[("pointnet", "NR")] - acc[("pointnet", "AR")])
+    assert acc[("compass+pointnet", "AR")] > acc[("pointnet", "AR")] + 0.2
