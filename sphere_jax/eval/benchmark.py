@@ -158,8 +158,11 @@ def run(config, workdir, progress=True):
     if config.task == "recognition":
         from sphere_jax.eval import recognition
         return recognition.run(config, workdir, progress)
-    raise ValueError(f"config.task must be one of registration, lrf, objects, recognition; "
-                     f"got {config.task!r}")
+    if config.task == "pose":
+        from sphere_jax.eval import pose
+        return pose.run(config, workdir, progress)
+    raise ValueError(f"config.task must be one of registration, lrf, objects, recognition, "
+                     f"pose; got {config.task!r}")
 
 
 def mean_rows(rows):
