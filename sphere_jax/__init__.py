@@ -1,0 +1,85 @@
+"""sphere_jax — learned, rotation-equivariant 3D local features in JAX.
+
+Compass (a learned local reference frame), LEAD / LEAD-PN (unsupervised descriptors) and SOUND
+(a self-orienting descriptor) on spherical CNNs, with the registration, LRF and recognition
+evaluations of the thesis they come from.
+
+The three calls most people need::
+
+    import sphere_jax
+    frames = sphere_jax.orient("checkpoints/compass_cpu/bundle", points, keypoints)   # [K, 3, 3]
+    desc = sphere_jax.describe("checkpoints/sound_cpu/bundle", points, keypoints)     # [K, 512]
+    bundle = sphere_jax.load_bundle(path)        # reuse one bundle across calls
+
+Conventions (owned by :mod:`sphere_jax.so3`): points are ``[N, 3]`` float arrays in metres,
+rotations act actively (``p' = R p``), an LRF is a 3×3 matrix whose **columns** are x̂, ŷ, ẑ in
+world coordinates, so a patch in canonical pose is ``(p − keypoint) @ F``. Modules:
+``so3, wigner, transforms, correlation, layers, signal, soft_argmax, losses`` (the spherical
+core, pure functions), ``models`` (flax), ``training``, ``api``, ``data`` (readers, patches,
+synthetic data) and ``eval`` (benchmarks).
+"""
+from __future__ import annotations
+
+import functools
+
+__all__ = ["load_bundle", "orient", "describe"]
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(path):
+    from sphere_jax import api
+    return api.load_bundle(path)
+
+
+def load_bundle(path):
+    """Load an inference bundle (``bundle/`` written at the end of training): an
+    :class:`sphere_jax.api.Bundle` with ``.orient``, ``.describe`` and ``.config``."""
+    from sphere_jax import api
+    return api.load_bundle(path)
+
+
+def _bundle(bundle_or_path):
+    return _load_cached(str(bundle_or_path)) if isinstance(bundle_or_path, (str, bytes)) or \
+        hasattr(bundle_or_path, "__fspath__") else bundle_or_path
+
+
+def orient(bundle, points, keypoints, radius=None, chunk=256, seed=0):
+    """Local reference frames from a Compass or SOUND bundle.
+
+    Args:
+      bundle: a :class:`sphere_jax.api.Bundle` or the path of one (loaded once, then cached).
+      points: ``[N, 3]`` float cloud, metres (e.g. voxelised at 2 cm for 3DMatch).
+      keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
+      radius: support radius in metres (default: the bundle's training radius, 0.3 m).
+      chunk: patches per jitted, vmapped call; memory stays bounded for any K and the
+        function compiles once.
+      seed: seed of the patch resampling (N points drawn with replacement per support).
+
+    Returns:
+      ``[K, 3, 3]`` float32 rotation matrices, columns x̂, ŷ, ẑ in world coordinates.
+    """
+    return _bundle(bundle).orient(points, keypoints, radius=radius, chunk=chunk, seed=seed)
+
+
+def describe(bundle, points, keypoints, radius=None, chunk=256, seed=0, frames=None):
+    """Rotation-invariant local descriptors from a LEAD, LEAD-PN or SOUND bundle.
+
+    LEAD's SO(3) descriptor is turned to canonical pose by ``frames`` (``[K, 3, 3]``, e.g.
+    :func:`orient` with a Compass bundle) or, by default, FLARE; LEAD-PN describes the
+    FLARE-oriented patch; SOUND orients itself.
+
+    Args:
+      bundle: a :class:`sphere_jax.api.Bundle` or the path of one.
+      points: ``[N, 3]`` float cloud, metres.
+      keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
+      radius: support radius in metres (default: the bundle's).
+      chunk, seed: as in :func:`orient`.
+      frames: optional LRFs for LEAD.
+
+    Returns:
+      ``[K, D]`` float32 descriptors (D = 512 for the shipped bundles); compare them with the
+      Euclidean distance (e.g. mutual nearest neighbours,
+      :func:`sphere_jax.eval.registration.mutual_matches`).
+    """
+    return _bundle(bundle).describe(points, keypoints, radius=radius, chunk=chunk, seed=seed,
+                                    frames=frames)

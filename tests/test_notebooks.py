@@ -1,0 +1,31 @@
+"""Every notebook runs top to bottom headless (nbclient), within a time budget."""
+import glob
+import os
+import time
+
+import pytest
+
+NOTEBOOKS = sorted(glob.glob(os.path.join(os.path.dirname(__file__), "..", "notebooks",
+                                          "*.ipynb")))
+BUDGET_S = 300                      # per notebook on the 2-core machine
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=os.path.basename)
+def test_notebook_runs(path, monkeypatch):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    monkeypatch.setenv("NOTEBOOK_TRAIN_STEPS", "60")          # the training demo, shortened
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    nb = nbformat.read(path, as_version=4)
+    start = time.perf_counter()
+    nbclient.NotebookClient(nb, timeout=BUDGET_S, kernel_name="python3",
+                            resources={"metadata": {"path": os.path.dirname(path)}}).execute()
+    elapsed = time.perf_counter() - start
+    images = sum("image/png" in o.get("data", {}) for c in nb.cells for o in c.get("outputs", []))
+    print(f"{os.path.basename(path)}: {elapsed:.0f} s, {images} figure(s)")
+    assert images >= 1
+    assert elapsed < BUDGET_S
+
+
+def test_there_are_four_notebooks():
+    assert len(NOTEBOOKS) == 4
