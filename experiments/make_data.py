@@ -1,7 +1,8 @@
 """Write the embedded default data: ``python -m experiments.make_data --out=DIR [--seed=0]``.
 
-Synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shape set and RGB-D object
-frames (see :mod:`sphere_jax.data.synthetic`). Same seed, same bytes.
+Synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shape set, RGB-D object
+frames and object crops in the Washington RGB-D layout (see :mod:`sphere_jax.data.synthetic`).
+Same seed, same bytes.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ def main(argv=None):
     out = args.out or synthetic.default_data_dir(args.seed)
     t0 = time.time()
     summary = synthetic.make_all(out, args.seed, n_scenes=args.scenes)
+    summary["washington"] = synthetic.make_default_objects(out, args.seed)
     print(json.dumps(summary, indent=1))
     print(f"wrote {out} in {time.time() - t0:.0f} s")
 

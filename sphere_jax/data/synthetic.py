@@ -309,11 +309,20 @@ def ensure_default_data(seed=0, out_dir=None):
 def ensure_default_objects(seed=0):
     """Synthetic object crops in the Washington RGB-D layout (``washington/`` beside the
     default data), generated on first use and moved into place when complete."""
-    from sphere_jax.data import washington
     out_dir = os.path.join(ensure_default_data(seed), "washington")
-    if os.path.isfile(os.path.join(out_dir, "camera-intrinsics.txt")):
-        return out_dir
-    tmp = f"{out_dir}.partial{os.getpid()}"
-    washington.make_synthetic(tmp, seed * 1000 + 303)
-    os.replace(tmp, out_dir)
+    if not os.path.isfile(os.path.join(out_dir, "camera-intrinsics.txt")):
+        make_default_objects(os.path.dirname(out_dir), seed)
     return out_dir
+
+
+def make_default_objects(data_dir, seed=0):
+    """Write ``data_dir/washington`` (via a temporary folder renamed when complete)."""
+    from sphere_jax.data import washington
+    out_dir = os.path.join(data_dir, "washington")
+    tmp = f"{out_dir}.partial{os.getpid()}"
+    summary = washington.make_synthetic(tmp, seed * 1000 + 303)
+    if os.path.isdir(out_dir):
+        import shutil
+        shutil.rmtree(out_dir)
+    os.replace(tmp, out_dir)
+    return summary
