@@ -51,6 +51,20 @@ def _neighbourhoods(frag: Fragment, indices, radius):
     return radius_neighbourhoods(frag.points, frag.points[indices], radius, frag.tree)
 
 
+def _on_supported(f: Fragment, radius, fn):
+    """``fn(keypoints) -> [k, D]`` on the keypoints with a neighbour within ``radius``; the
+    isolated ones (stray sensor points) get zero rows, like the hand-crafted descriptors."""
+    counts = f.tree.query_radius(f.points[f.keypoints], radius, count_only=True)
+    ok = counts > 1                                            # the keypoint itself counts
+    if ok.all():
+        return np.asarray(fn(f.keypoints), np.float32)
+    part = np.asarray(fn(f.keypoints[ok]), np.float32) if ok.any() else None
+    out = np.zeros((len(f.keypoints), part.shape[1] if part is not None else 1), np.float32)
+    if part is not None:
+        out[ok] = part
+    return out
+
+
 def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=256):
     """``describe(fragment) -> [K, D]`` for method ``name`` with support ``radius`` (metres);
     ``bundles`` maps a model kind (lead, compass, lead_pn, sound) to a bundle path."""
@@ -72,12 +86,14 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=256):
         lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
 
         def describe(f):
-            frames = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk)
-            return lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                 frames=frames)
+            def run(kp):
+                frames = compass.orient(f.points, kp, radius=radius, chunk=chunk)
+                return lead.describe(f.points, kp, radius=radius, chunk=chunk, frames=frames)
+            return _on_supported(f, radius, run)
         return describe
     model = _bundle(bundles[name])
-    return lambda f: model.describe(f.points, f.keypoints, radius=radius, chunk=chunk)
+    return lambda f: _on_supported(
+        f, radius, lambda kp: model.describe(f.points, kp, radius=radius, chunk=chunk))
 
 
 def lrf(name, radius, bundles=None, chunk=256):

@@ -2,10 +2,10 @@
 
 A database of partial views (clouds in their object's frame, from labelled model frames);
 in each test frame: [Saliency Boost: keep the points whose pixels are salient] → keypoints
-(uniform sampling, or ISS) → descriptors (any method of :mod:`methods`) → nearest model
-descriptor under a distance threshold → geometric consistency grouping (Chen & Bhanu 2007,
-as PCL's ``GeometricConsistencyGrouping``) → a pose per group (Kabsch) → the model projected
-to a 2-D box. A detection is correct if its instance is in the frame with IoU ≥ 0.25; ranking
+(uniform sampling, or ISS) → descriptors (any method of :mod:`methods`, scaled to unit
+length) → nearest model descriptor under a distance threshold → geometric consistency
+grouping (Chen & Bhanu 2007, as PCL's ``GeometricConsistencyGrouping``) → a pose per group
+(Kabsch) → the model projected to a 2-D box. A detection is correct if its instance is in the frame with IoU ≥ 0.25; ranking
 detections by group size gives the precision–recall curve and its AUC.
 """
 from __future__ import annotations
@@ -166,6 +166,14 @@ def split_frames(frames: list[ObjectFrame], model_views_per_scene=2):
 
 # ---- recognition -------------------------------------------------------------------------------
 
+def unit_rows(desc_KxD):
+    """Descriptors scaled to unit length, so one distance threshold serves every method (the
+    hand-crafted ones already are; learned ones are not)."""
+    d = np.asarray(desc_KxD, np.float32)
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    return d / np.where(n > 0, n, 1.0)
+
+
 @dataclasses.dataclass
 class Detection:
     frame: str
@@ -198,7 +206,7 @@ def recognise(frame: ObjectFrame, database: list[ModelView], describe: Callable,
         scene.keypoints = patches.iss_keypoints(scene.points)
     seconds["keypoints"] = time.perf_counter() - t
     t = time.perf_counter()
-    desc = np.asarray(describe(scene), np.float32)
+    desc = unit_rows(describe(scene))
     seconds["description"] = time.perf_counter() - t
     t = time.perf_counter()
     detections, group_time = [], 0.0
@@ -249,7 +257,7 @@ def evaluate(test_frames, database, describers: dict, leaf, voxel, match_thresho
     rows, curves = [], {}
     for name, describe in describers.items():
         for view in database:
-            view.descriptors = np.asarray(describe(view.fragment), np.float32)
+            view.descriptors = unit_rows(describe(view.fragment))
         for boost in ((False, True) if saliency is not None else (False,)):
             dets, secs, kps = [], dict.fromkeys(STAGES, 0.0), []
             for fr in tqdm(test_frames, desc=f"{name}{' + boost' if boost else ''}",
