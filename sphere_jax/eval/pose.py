@@ -54,14 +54,15 @@ def crop_box(depth, intrinsics, box, depth_scale=1000.0, color=None):
 
 
 def remove_support_plane(points, distance=0.01, min_fraction=0.3, seed=0):
-    """Drop the dominant plane (a table) if it holds at least ``min_fraction`` of the points."""
+    """Drop the dominant plane (a table) if it holds at least ``min_fraction`` of the points
+    and something is left (a box-shaped object seen face-on is itself mostly one plane)."""
     import open3d as o3d
     if len(points) < 50:
         return points
     o3d.utility.random.seed(int(seed))
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
     _, inliers = pcd.segment_plane(distance, 3, 200)
-    if len(inliers) < min_fraction * len(points):
+    if len(inliers) < min_fraction * len(points) or len(points) - len(inliers) < 30:
         return points
     keep = np.ones(len(points), bool)
     keep[inliers] = False
