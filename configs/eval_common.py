@@ -39,7 +39,7 @@ def base(arg) -> ml_collections.ConfigDict:
         sound=shipped("sound_cpu")))
     c.chunk = 256
     if size == "quick":
-        c.data.update(n_keypoints=1000, max_pairs=8)
+        c.data.update(n_keypoints=2500, max_pairs=8)
     elif size == "tiny":
         c.data.update(n_keypoints=300, max_pairs=2, scenes="")
     return c

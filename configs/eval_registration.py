@@ -7,7 +7,7 @@
 
 Writes results.csv / results.md (rows = methods, columns = scenes + mean: FMR, inlier ratio,
 correct matches, registration recall, RRE, RTE, ms per keypoint) and fmr_vs_tau2.png.
-Arguments: '' (5000 keypoints, every pair), 'quick' (1000 keypoints, 8 pairs per scene: the
+Arguments: '' (5000 keypoints, every pair), 'quick' (2500 keypoints, 8 pairs per scene: the
 README's main job), 'tiny' (tests). Expected on the embedded scenes: the hand-crafted
 descriptors (FPFH, SHOT) register most pairs; the shipped 'cpu' networks do not yet match
 (FMR near 0) — see the README's results.
