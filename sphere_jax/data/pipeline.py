@@ -115,30 +115,33 @@ def unit_shapes(shapes_BxNx3):
 
 
 class ShapeSource:
-    """A ModelNet-layout shape set (``shape_names.txt``, ``train.txt`` / ``test.txt`` or
-    ``modelnet40_*.txt`` lists, ``<class>/<id>.txt`` files)."""
+    """A labelled shape set in one of ModelNet40's released layouts:
+
+    * resampled (``modelnet40_normal_resampled``): ``shape_names.txt`` (or
+      ``modelnet40_shape_names.txt``), ``train.txt`` / ``test.txt`` (or ``modelnet40_*.txt``)
+      lists and ``<class>/<id>.txt`` files — also the embedded synthetic set;
+    * original meshes: ``<class>/{train,test}/*.off``, each sampled to 10 000 surface points
+      (seeded) and scaled into the unit sphere;
+    * PointNet's HDF5: ``*train*.h5`` / ``*test*.h5`` (needs h5py) with ``shape_names.txt``.
+    """
 
     def __init__(self, root, n_points, seed=0):
         self.n_points, self.seed = n_points, seed
-        names_file = next((os.path.join(root, f) for f in ("shape_names.txt",
-                                                           "modelnet40_shape_names.txt")
-                           if os.path.isfile(os.path.join(root, f))), None)
-        if names_file is None:
-            raise FileNotFoundError(f"no shape_names.txt under {root!r}")
-        self.classes = open(names_file).read().split()
-        self.splits = {}
-        for split in ("train", "test"):
-            lst = next((os.path.join(root, f) for f in (f"{split}.txt", f"modelnet40_{split}.txt")
-                        if os.path.isfile(os.path.join(root, f))), None)
-            ids = open(lst).read().split() if lst else []
-            shapes, labels = [], []
-            for sid in ids:
-                cls = sid.rsplit("_", 1)[0]
-                path = os.path.join(root, cls, sid + ".txt")
-                if os.path.isfile(path):
-                    shapes.append(io.read_modelnet_txt(path).points)
-                    labels.append(self.classes.index(cls))
-            self.splits[split] = (shapes, np.array(labels, np.int64))
+        root = str(root)
+        if not os.path.isdir(root):
+            raise FileNotFoundError(f"shape root {root!r} is not a folder")
+        names = next((os.path.join(root, f) for f in ("shape_names.txt",
+                                                      "modelnet40_shape_names.txt")
+                      if os.path.isfile(os.path.join(root, f))), None)
+        if glob.glob(os.path.join(root, "*.h5")):
+            self.classes, self.splits = _load_h5(root, names)
+        elif names is not None:
+            self.classes, self.splits = _load_resampled(root, names)
+        elif glob.glob(os.path.join(root, "*", "train", "*.off")):
+            self.classes, self.splits = _load_off(root, seed)
+        else:
+            raise FileNotFoundError(f"{root!r} holds no ModelNet layout (shape_names.txt with "
+                                    f".txt shapes, <class>/train/*.off meshes, or *.h5 files)")
         if not self.splits["train"][0]:
             raise ValueError(f"no training shapes found under {root!r}")
 
@@ -161,3 +164,52 @@ class ShapeSource:
         if rotate:
             pts = np.einsum("bij,bnj->bni", augment.random_rotations(rng, batch_size), pts)
         return {"points": pts.astype(np.float32), "labels": labels[pick]}
+
+
+def _load_resampled(root, names_file):
+    classes = open(names_file).read().split()
+    splits = {}
+    for split in ("train", "test"):
+        lst = next((os.path.join(root, f) for f in (f"{split}.txt", f"modelnet40_{split}.txt")
+                    if os.path.isfile(os.path.join(root, f))), None)
+        shapes, labels = [], []
+        for sid in (open(lst).read().split() if lst else []):
+            cls = sid.rsplit("_", 1)[0]
+            path = os.path.join(root, cls, sid + ".txt")
+            if os.path.isfile(path):
+                shapes.append(io.read_modelnet_txt(path).points)
+                labels.append(classes.index(cls))
+        splits[split] = (shapes, np.array(labels, np.int64))
+    return classes, splits
+
+
+def _load_off(root, seed, n_surface=10_000):
+    classes = sorted(d for d in os.listdir(root)
+                     if os.path.isdir(os.path.join(root, d, "train")))
+    splits = {}
+    for split in ("train", "test"):
+        shapes, labels = [], []
+        for c, cls in enumerate(classes):
+            for k, path in enumerate(sorted(glob.glob(os.path.join(root, cls, split, "*.off")))):
+                rng = np.random.default_rng([seed, c, k, split == "test"])
+                pts = io.sample_mesh(io.read_off(path), n_surface, rng).points
+                pts = pts - (pts.min(0) + pts.max(0)) / 2
+                shapes.append(pts / max(float(np.linalg.norm(pts, axis=1).max()), 1e-12))
+                labels.append(c)
+        splits[split] = (shapes, np.array(labels, np.int64))
+    return classes, splits
+
+
+def _load_h5(root, names_file):
+    splits = {}
+    for split in ("train", "test"):
+        shapes, labels = [], []
+        for path in sorted(glob.glob(os.path.join(root, f"*{split}*.h5"))):
+            data, lab, _ = io.read_modelnet_h5(path)
+            shapes += list(data)
+            labels += lab.tolist()
+        splits[split] = (shapes, np.array(labels, np.int64))
+    n_classes = int(max(splits["train"][1].max(initial=-1), splits["test"][1].max(initial=-1))) + 1
+    classes = open(names_file).read().split() if names_file else [str(k) for k in
+                                                                   range(n_classes)]
+    return classes, splits
