@@ -13,6 +13,7 @@ split and fed to six classifiers. Protocols of the Washington RGB-D Object bench
 """
 from __future__ import annotations
 
+import os
 from typing import Callable
 
 import numpy as np
@@ -143,7 +144,6 @@ def markdown(rows):
 
 def run(config, workdir, progress=True):
     """The colour + shape benchmark of ``configs/eval_objects.py``: objects.csv / objects.md."""
-    import os
     from sphere_jax import api
     from sphere_jax.data import synthetic, washington
     from sphere_jax.eval import report

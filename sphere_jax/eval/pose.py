@@ -8,6 +8,7 @@ A model is a set of stored partial views of one object, each a cloud in the obje
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from typing import Callable, Sequence
 
@@ -196,7 +197,6 @@ def colour_classifier(model_frames, seed=0):
 def run(config, workdir, progress=True):
     """Pose benchmark of ``configs/eval_pose.py`` on labelled RGB-D frames: every visible
     instance of every test frame, from its ground-truth box. Writes pose.csv / pose.md."""
-    import os
     from tqdm.auto import tqdm
     from sphere_jax.data import synthetic
     from sphere_jax.data.datasets import read_object_frames

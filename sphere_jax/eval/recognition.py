@@ -11,6 +11,7 @@ detections by group size gives the precision–recall curve and its AUC.
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from typing import Callable
 
@@ -283,7 +284,6 @@ def evaluate(test_frames, database, describers: dict, leaf, voxel, match_thresho
 def run(config, workdir, progress=True):
     """Saliency Boost benchmark of ``configs/eval_recognition.py``: recognition.csv / .md,
     pr_curves.png and time_vs_auc.png."""
-    import os
     from sphere_jax.data import datasets, synthetic
     from sphere_jax.eval import methods as method_lib, report, saliency as saliency_lib
     from sphere_jax.eval.benchmark import bundle_paths, chosen_methods
