@@ -20,15 +20,7 @@ synthetic data) and ``eval`` (benchmarks).
 """
 from __future__ import annotations
 
-import functools
-
 __all__ = ["load_bundle", "orient", "describe"]
-
-
-@functools.lru_cache(maxsize=8)
-def _load_cached(path):
-    from sphere_jax import api
-    return api.load_bundle(path)
 
 
 def load_bundle(path):
@@ -39,8 +31,10 @@ def load_bundle(path):
 
 
 def _bundle(bundle_or_path):
-    return _load_cached(str(bundle_or_path)) if isinstance(bundle_or_path, (str, bytes)) or \
-        hasattr(bundle_or_path, "__fspath__") else bundle_or_path
+    if isinstance(bundle_or_path, (str, bytes)) or hasattr(bundle_or_path, "__fspath__"):
+        from sphere_jax import api
+        return api.cached_bundle(bundle_or_path)
+    return bundle_or_path
 
 
 def orient(bundle, points, keypoints, radius=None, chunk=256, seed=0):

@@ -12,6 +12,7 @@ stays bounded for any number of keypoints.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 
@@ -153,3 +154,16 @@ def load_bundle(path) -> Bundle:
     with ocp.StandardCheckpointer() as ckpt:
         variables = ckpt.restore(os.path.join(path, "variables"))
     return Bundle(model, variables, config)
+
+
+def cached_bundle(path) -> Bundle:
+    """:func:`load_bundle`, once per bundle folder and process (the models compile once);
+    a folder rewritten since (a new ``config.json``) is loaded again."""
+    path = os.path.abspath(str(path))
+    cfg = os.path.join(path, "config.json")
+    return _cached_bundle(path, os.stat(cfg).st_mtime_ns if os.path.isfile(cfg) else None)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_bundle(path, _stamp):
+    return load_bundle(path)

@@ -101,16 +101,12 @@ def get_batch(config, source, step, split="train"):
             return source.batch(step, bs, split, copies=True, occlusion=config.data.occlusion)
         batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
         if config.get("orient_bundle"):
-            batch["points"] = orient_shapes(_orienter(config.orient_bundle), batch["points"])
+            from sphere_jax import api
+            batch["points"] = orient_shapes(api.cached_bundle(config.orient_bundle),
+                                            batch["points"])
         return batch
     return source.batch(step, bs, split, copies=config.model in ("compass", "sound"),
                         occlusion=config.data.occlusion)
-
-
-@functools.lru_cache(maxsize=4)
-def _orienter(path):
-    from sphere_jax import api
-    return api.load_bundle(path)
 
 
 def orient_shapes(bundle, shapes_BxNx3):

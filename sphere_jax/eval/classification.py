@@ -69,7 +69,7 @@ def run(config, workdir, progress=True):
         pts, labels = test_points(source, c.data.n_points, c.seed)
         rng = np.random.default_rng(c.eval_rotation_seed)
         rotated = np.einsum("bij,bnj->bni", augment.random_rotations(rng, len(pts)), pts)
-        orient = api.load_bundle(c.orient_bundle) if c.orient_bundle else None
+        orient = api.cached_bundle(c.orient_bundle) if c.orient_bundle else None
         for split, x in (("NR", pts), ("AR", rotated.astype(np.float32))):
             rows.append({"method": method, "split": split,
                          "accuracy": accuracy(bundle, x, labels, orient)})

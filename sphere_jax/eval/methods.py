@@ -20,8 +20,6 @@ it), ``shot``, ``toldi``, ``compass`` and ``sound`` (its Compass branch).
 """
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from sphere_jax.eval import descriptors, lrfs
@@ -36,10 +34,9 @@ BUNDLE_OF = {"lead": ("lead",), "lead_compass": ("lead", "compass"), "lead_pn": 
 FLARE_POINTS = 1225
 
 
-@functools.lru_cache(maxsize=16)
 def _bundle(path):
     from sphere_jax import api
-    return api.load_bundle(path)
+    return api.cached_bundle(path)
 
 
 def bundles_needed(names, bundles: dict):
