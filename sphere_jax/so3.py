@@ -81,6 +81,14 @@ def geodesic_distance(a_x33, b_x33):
     return jnp.arccos(jnp.clip(cos, -_COS_CLIP, _COS_CLIP))
 
 
+def geodesic_distance_np(a_x33, b_x33):
+    """:func:`geodesic_distance` for evaluations: float64 numpy, clipped exactly to ±1 (no
+    gradient to protect), NaN where either matrix is NaN."""
+    a, b = np.asarray(a_x33, np.float64), np.asarray(b_x33, np.float64)
+    cos = (np.einsum("...ij,...ij->...", a, b) - 1.0) / 2.0
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
 def sphere_points(beta, alpha):
     """Unit vectors ``[..., 3]`` at polar angle β (from +z) and azimuth α (from +x)."""
     sb = jnp.sin(beta)

@@ -162,9 +162,8 @@ def pose_errors(t_est, t_gt, model_points=None):
     distance from each estimated model point to the nearest ground-truth one: symmetric
     objects are not penalised for an equivalent pose)."""
     from scipy.spatial import cKDTree
-    r = t_est[:3, :3].T @ t_gt[:3, :3]
-    rre = float(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))))
-    rte = float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
+    from sphere_jax.eval.registration import rre_rte
+    rre, rte = rre_rte(t_est, t_gt)
     if model_points is None:
         return rre, rte
     a = model_points @ t_est[:3, :3].T + t_est[:3, 3]

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
+from sphere_jax import so3
 from sphere_jax.eval import scenes as scene_lib
 
 TAU1, TAU2 = 0.10, 0.05
@@ -45,9 +46,8 @@ def mutual_matches(desc_a_KxD, desc_b_KxD):
 
 def rre_rte(t_est, t_gt):
     """Relative rotation error (degrees) and translation error (same unit as t)."""
-    r = t_est[:3, :3].T @ t_gt[:3, :3]
-    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.degrees(np.arccos(cos))), float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
+    rre = np.degrees(so3.geodesic_distance_np(t_est[:3, :3], t_gt[:3, :3]))
+    return float(rre), float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
 
 
 def ransac(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000, seed=0):

@@ -14,6 +14,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
+from sphere_jax import so3
 from sphere_jax.eval import scenes as scene_lib
 
 RHO = 0.97
@@ -42,8 +43,7 @@ class FrameCache:
 
 def frame_angles_deg(a_Kx3x3, b_Kx3x3):
     """Geodesic angle between corresponding frames, degrees (NaN where either is NaN)."""
-    cos = (np.einsum("kij,kij->k", a_Kx3x3, b_Kx3x3) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return np.degrees(so3.geodesic_distance_np(a_Kx3x3, b_Kx3x3))
 
 
 def correspondences(frag_i, frag_j, t_gt, match_dist):
