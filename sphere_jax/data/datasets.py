@@ -296,10 +296,11 @@ def _read_image(path):
 
 
 def depth_to_cloud(depth, intrinsics, color=None, pose=None, depth_scale=1000.0,
-                   depth_trunc=np.inf) -> Cloud:
+                   depth_trunc=np.inf, origin=(0, 0)) -> Cloud:
     """Back-project a depth image ``[H, W]`` (raw units / ``depth_scale`` = metres) through
     the pinhole ``intrinsics``; zero depth is a missing return. With ``pose`` (camera-to-world)
-    the points are in world coordinates; ``color`` ``[H, W, 3]`` gives per-point colours."""
+    the points are in world coordinates; ``color`` ``[H, W, 3]`` gives per-point colours.
+    A crop passes ``origin = (u0, v0)``, its top-left pixel in the image of the intrinsics."""
     depth = np.asarray(depth)
     if depth.ndim != 2:
         raise ValueError(f"depth must be [H, W], got {depth.shape}")
@@ -307,7 +308,9 @@ def depth_to_cloud(depth, intrinsics, color=None, pose=None, depth_scale=1000.0,
     v, u = np.nonzero((z > 0) & (z < depth_trunc))
     z = z[v, u]
     k = np.asarray(intrinsics, np.float64)
-    pts = np.stack([(u - k[0, 2]) * z / k[0, 0], (v - k[1, 2]) * z / k[1, 1], z], 1)
+    x = (u + origin[0] - k[0, 2]) * z / k[0, 0]
+    y = (v + origin[1] - k[1, 2]) * z / k[1, 1]
+    pts = np.stack([x, y, z], 1)
     if pose is not None:
         pose = np.asarray(pose, np.float64)
         pts = pts @ pose[:3, :3].T + pose[:3, 3]

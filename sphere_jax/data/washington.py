@@ -61,12 +61,8 @@ class Sample:
 
     def points(self):
         """The object's points (camera frame, metres) from the masked depth crop."""
-        u0, v0 = self.loc()
-        k = np.array(self.intrinsics, np.float64)
-        k[0, 2] -= u0
-        k[1, 2] -= v0
         depth = np.where(self.mask(), self.depth(), 0).astype(np.uint16)
-        return datasets.depth_to_cloud(depth, k).points
+        return datasets.depth_to_cloud(depth, self.intrinsics, origin=self.loc()).points
 
 
 def read_dataset(root, categories=None) -> list[Sample]:

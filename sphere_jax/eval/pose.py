@@ -46,12 +46,10 @@ def crop_box(depth, intrinsics, box, depth_scale=1000.0, color=None):
     u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, w - 1), min(v1, h - 1)
     if u1 < u0 or v1 < v0:
         raise ValueError(f"box {box} lies outside the {w}x{h} image")
-    k = np.array(intrinsics, np.float64)
-    k[0, 2] -= u0
-    k[1, 2] -= v0
     crop = np.asarray(depth)[v0:v1 + 1, u0:u1 + 1]
     col = None if color is None else np.asarray(color)[v0:v1 + 1, u0:u1 + 1]
-    return datasets.depth_to_cloud(crop, k, col, depth_scale=depth_scale)
+    return datasets.depth_to_cloud(crop, intrinsics, col, depth_scale=depth_scale,
+                                   origin=(u0, v0))
 
 
 def remove_support_plane(points, distance=0.01, min_fraction=0.3, seed=0):
