@@ -59,9 +59,11 @@ class Sample:
             raise DataError(path, "expected 'u,v' of the crop's top-left pixel")
         return int(nums[0]), int(nums[1])
 
-    def points(self):
-        """The object's points (camera frame, metres) from the masked depth crop."""
-        depth = np.where(self.mask(), self.depth(), 0).astype(np.uint16)
+    def points(self, mask=None):
+        """The object's points (camera frame, metres) from the masked depth crop (``mask``:
+        :meth:`mask`, when the caller has read it already)."""
+        mask = self.mask() if mask is None else mask
+        depth = np.where(mask, self.depth(), 0).astype(np.uint16)
         return datasets.depth_to_cloud(depth, self.intrinsics, origin=self.loc()).points
 
 

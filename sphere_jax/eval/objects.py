@@ -70,9 +70,10 @@ def features(samples: list[Sample], colour: Callable = hsv_histogram,
     """``{feature set: [n, D]}`` for the crops; ``colour+shape`` is the concatenation."""
     cols, shapes_ = [], []
     for s in tqdm(samples, desc="features", disable=not progress):
-        cols.append(np.asarray(colour(s.color(), s.mask()), np.float32))
+        mask = s.mask()
+        cols.append(np.asarray(colour(s.color(), mask), np.float32))
         if shape is not None:
-            shapes_.append(np.asarray(shape(s.points()), np.float32))
+            shapes_.append(np.asarray(shape(s.points(mask)), np.float32))
     out = {"colour": np.stack(cols)}
     if shape is not None:
         out["shape"] = np.stack(shapes_)
