@@ -126,9 +126,7 @@ def run_lrf(config, workdir, progress=True):
     results, plot_dir = [], os.path.join(workdir, "plots")
     os.makedirs(plot_dir, exist_ok=True)
     for s in pair_sets(config):
-        keys = sorted({k for p in s.pairs for k in p}, key=s.keys.index)
-        frags = {k: scene_lib.prepare(s, k, seed=config.seed, **prepare_kwargs(config))
-                 for k in keys}
+        frags = scene_lib.prepare_all(s, config.seed, progress, **prepare_kwargs(config))
         scene_results = repeatability.evaluate_scene(
             s, orienters, match_dist=config.match_dist, rho=config.rho, seed=config.seed,
             progress=progress, fragments=frags)
@@ -163,11 +161,4 @@ def run(config, workdir, progress=True):
         return pose.run(config, workdir, progress)
     raise ValueError(f"config.task must be one of registration, lrf, objects, recognition, "
                      f"pose; got {config.task!r}")
-
-
-def mean_rows(rows):
-    """The ``mean`` row of each method (as in the CSV)."""
-    return [r for r in report.with_means(rows, report.REGISTRATION_COLUMNS
-                                         if "fmr" in rows[0] else report.LRF_COLUMNS)
-            if r["scene"] == "mean"]
 

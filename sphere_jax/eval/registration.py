@@ -124,10 +124,7 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                    ransac_iterations=50_000, seed=0, progress=True) -> list[SceneResult]:
     """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``) on every pair
     of ``pair_set``, on the same prepared fragments and keypoints."""
-    prepare_kwargs = dict(prepare_kwargs or {})
-    keys = sorted({k for p in pair_set.pairs for k in p}, key=pair_set.keys.index)
-    frags = {k: scene_lib.prepare(pair_set, k, seed=seed, **prepare_kwargs)
-             for k in tqdm(keys, desc=f"{pair_set.name}: prepare", disable=not progress)}
+    frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
     n_kp = sum(len(f.keypoints) for f in frags.values())
     results = []
     for name, describe in describers.items():

@@ -82,11 +82,8 @@ def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
                    fragments=None) -> list[LrfResult]:
     """Every LRF method of ``orienters`` (name -> ``orient(fragment, indices)``) on every pair
     of ``pair_set``; ``fragments`` (key -> :class:`Fragment`) skips the preparation."""
-    prepare_kwargs = dict(prepare_kwargs or {})
-    keys = sorted({k for p in pair_set.pairs for k in p}, key=pair_set.keys.index)
-    frags = fragments or {k: scene_lib.prepare(pair_set, k, seed=seed, **prepare_kwargs)
-                          for k in tqdm(keys, desc=f"{pair_set.name}: prepare",
-                                        disable=not progress)}
+    frags = fragments or scene_lib.prepare_all(pair_set, seed, progress,
+                                               **(prepare_kwargs or {}))
     results = []
     for name, orient in orienters.items():
         cached = FrameCache(orient)

@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 from sklearn.neighbors import KDTree
+from tqdm.auto import tqdm
 
 from sphere_jax.data import augment, datasets, patches
 from sphere_jax.eval.neighbourhood import estimate_normals
@@ -146,3 +147,10 @@ def prepare(pair_set: PairSet, key, voxel=0.02, n_keypoints=5000, normal_k=17, s
         rng = np.random.default_rng([seed, pair_set.keys.index(key)])
         keypoints = patches.random_keypoints(points, n_keypoints, rng)
     return Fragment(key, points, normals, keypoints, tree)
+
+
+def prepare_all(pair_set: PairSet, seed=0, progress=False, **prepare_kwargs) -> dict:
+    """:func:`prepare` for every scan that takes part in a pair: ``{key: Fragment}``."""
+    keys = sorted({k for p in pair_set.pairs for k in p}, key=pair_set.keys.index)
+    return {k: prepare(pair_set, k, seed=seed, **prepare_kwargs)
+            for k in tqdm(keys, desc=f"{pair_set.name}: prepare", disable=not progress)}
