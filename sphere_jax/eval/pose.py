@@ -224,7 +224,7 @@ def run(config, workdir, progress=True):
                 res = estimate_pose(depth, fr.intrinsics, inst["box"], list(models.values()),
                                     config.data.voxel, classify, masked, method,
                                     seed=config.seed)
-                t_gt = np.linalg.inv(fr.pose) @ recognition._rigid(inst["pose"])
+                t_gt = recognition.object_to_camera(fr, inst)
                 model_pts = np.concatenate(models[label].views)[::5]
                 rre, rte, adds = pose_errors(res.transform, t_gt, model_pts)
                 extent = np.linalg.norm(model_pts.max(0) - model_pts.min(0))

@@ -111,6 +111,11 @@ class ModelView:
     points: np.ndarray              # object frame
     fragment: Fragment
     descriptors: np.ndarray = None
+    tree: cKDTree = None            # over the descriptors, built once for every test frame
+
+    def set_descriptors(self, desc_KxD):
+        self.descriptors = unit_rows(desc_KxD)
+        self.tree = cKDTree(self.descriptors)
 
 
 def instance_label(inst):
@@ -119,10 +124,12 @@ def instance_label(inst):
     return f"{inst['category']}@{np.round(np.asarray(inst['pose'])[:3, 3], 3).tolist()}"
 
 
-def _rigid(pose_with_scale):
-    t = np.array(pose_with_scale, np.float64)
-    t[:3, :3] /= np.linalg.norm(t[:3, :3], axis=0, keepdims=True)
-    return t
+def object_to_camera(frame: ObjectFrame, inst):
+    """The instance's pose in the frame's camera, its scale removed (labels hold rotation ×
+    scale)."""
+    obj = np.array(inst["pose"], np.float64)
+    obj[:3, :3] /= np.linalg.norm(obj[:3, :3], axis=0, keepdims=True)
+    return np.linalg.inv(frame.pose) @ obj
 
 
 def make_fragment(points, leaf, voxel, normal_k=17, viewpoint=(0, 0, 0), key=None):
@@ -141,8 +148,7 @@ def build_database(frames: list[ObjectFrame], leaf, voxel, min_points=200):
             sel = ids == inst["id"]
             if sel.sum() < min_points:
                 continue
-            obj_to_cam = np.linalg.inv(fr.pose) @ _rigid(inst["pose"])
-            cam_to_obj = np.linalg.inv(obj_to_cam)
+            cam_to_obj = np.linalg.inv(object_to_camera(fr, inst))
             p = transform(pts[sel], cam_to_obj).astype(np.float32)
             frag = make_fragment(p, leaf, voxel, viewpoint=cam_to_obj[:3, 3],
                                  key=(fr.name, inst["id"]))
@@ -212,7 +218,7 @@ def recognise(frame: ObjectFrame, database: list[ModelView], describe: Callable,
     t = time.perf_counter()
     detections, group_time = [], 0.0
     for view in database:
-        dist, nn = cKDTree(view.descriptors).query(desc, k=1)
+        dist, nn = view.tree.query(desc, k=1)
         ok = np.nonzero(dist < match_threshold)[0]
         ok = ok[np.argsort(dist[ok], kind="stable")[:max_correspondences]]
         m = view.fragment.points[view.fragment.keypoints[nn[ok]]]
@@ -258,7 +264,7 @@ def evaluate(test_frames, database, describers: dict, leaf, voxel, match_thresho
     rows, curves = [], {}
     for name, describe in describers.items():
         for view in database:
-            view.descriptors = unit_rows(describe(view.fragment))
+            view.set_descriptors(describe(view.fragment))
         for boost in ((False, True) if saliency is not None else (False,)):
             dets, secs, kps = [], dict.fromkeys(STAGES, 0.0), []
             for fr in tqdm(test_frames, desc=f"{name}{' + boost' if boost else ''}",
