@@ -15,6 +15,7 @@ import numpy as np
 
 from sphere_jax.data import augment
 from sphere_jax.data.io import atomic_write
+from sphere_jax.eval import report
 
 METHODS = ("pointnet", "compass+pointnet")
 
@@ -74,9 +75,8 @@ def run(config, workdir, progress=True):
             rows.append({"method": method, "split": split,
                          "accuracy": accuracy(bundle, x, labels, orient)})
     os.makedirs(workdir, exist_ok=True)
-    atomic_write(os.path.join(workdir, "classification.csv"), (
-        "method,split,accuracy\n" + "".join(f"{r['method']},{r['split']},{r['accuracy']:.6g}\n"
-                                            for r in rows)).encode())
+    atomic_write(os.path.join(workdir, "classification.csv"),
+                 report.to_csv(rows, ("method", "split", "accuracy")).encode())
     methods = list(dict.fromkeys(r["method"] for r in rows))
     acc = {(r["method"], r["split"]): r["accuracy"] for r in rows}
     md = "\n".join(["| method | NR | AR |", "|---|---|---|"] + [
