@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import flax.linen as nn
+import jax.numpy as jnp
 
-from sphere_jax import correlation, transforms
+from sphere_jax import correlation, fused, transforms
 from sphere_jax.correlation import KernelGrid
 
 
@@ -39,16 +40,29 @@ class _SphericalConv(nn.Module):
 
     @nn.compact
     def __call__(self, x):
-        grid_ndim = 3 if self.on_so3 else 2
-        b = transforms.grid_bandwidth(x, grid_ndim)
-        if b != self.b_in:
-            raise ValueError(f"{type(self).__name__} expects b_in={self.b_in} (grid axes of "
-                             f"size {2 * self.b_in}), got input of shape {tuple(x.shape)} "
-                             f"(bandwidth {b})")
+        """Grids in, grids out; or a :class:`fused.Spectrum` in (analysed to ``b_out``) and the
+        output's spectrum out (the fused inference path of :mod:`fused`)."""
+        spectral = isinstance(x, fused.Spectrum)
+        kind = "SO(3)" if self.on_so3 else "S2"
+        if spectral:
+            if x.on_so3 != self.on_so3 or x.bandwidth != self.b_in:
+                raise ValueError(f"{type(self).__name__} expects the spectrum of an {kind} grid "
+                                 f"at b_in={self.b_in}, got {'SO(3)' if x.on_so3 else 'S2'} at "
+                                 f"bandwidth {x.bandwidth}")
+            c_in = x.channels
+        else:
+            grid_ndim = 3 if self.on_so3 else 2
+            b = transforms.grid_bandwidth(x, grid_ndim)
+            if b != self.b_in:
+                raise ValueError(f"{type(self).__name__} expects b_in={self.b_in} (grid axes of "
+                                 f"size {2 * self.b_in}), got input of shape {tuple(x.shape)} "
+                                 f"(bandwidth {b})")
+            c_in = x.shape[-grid_ndim - 1]
         grid = _resolve_grid(self.grid, self.on_so3, self.b_in)
-        c_in = x.shape[-grid_ndim - 1]
         w = self.param("kernel", kernel_init(self.gain, grid.size * c_in),
                        grid.shape + (c_in, self.features))
+        if spectral:
+            return fused.correlate(x, w, grid, self.b_out)
         fn = correlation.so3_correlate if self.on_so3 else correlation.s2_correlate
         return fn(x, w, grid, self.b_out)
 
@@ -77,6 +91,13 @@ class GridBatchNorm(nn.Module):
     def __call__(self, x, train: bool):
         return nn.BatchNorm(use_running_average=not train, axis=1, momentum=self.momentum,
                             epsilon=self.epsilon, use_scale=self.use_scale)(x)
+
+
+def batch_norm_affine(norm: GridBatchNorm, channels: int):
+    """``(scale [C], shift [C])`` of an inference-mode :class:`GridBatchNorm`, which is affine:
+    read off by applying it to 0 and to 1."""
+    out = norm(jnp.stack([jnp.zeros(channels), jnp.ones(channels)]), train=False)
+    return out[1] - out[0], out[0]
 
 
 def haar_pool(x):

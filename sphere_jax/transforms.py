@@ -91,7 +91,7 @@ def _f32(t):
 
 
 @functools.lru_cache(maxsize=None)
-def _forward_dft(b: int, n_freq: int, full: bool):
+def forward_dft(b: int, n_freq: int, full: bool):
     """``Σ_a e^{-ifα_a}`` as real tables. ``full=False``: real input, f ∈ [0, n) ->
     ``[2B(a), 2(re/im), n]``. ``full=True``: complex input (re/im axis r), f ∈ (-n, n) ->
     ``[2B(a), 2(r), 2(re/im out), 2n-1]``."""
@@ -104,7 +104,7 @@ def _forward_dft(b: int, n_freq: int, full: bool):
 
 
 @functools.lru_cache(maxsize=None)
-def _inverse_dft(b: int, n_freq: int, full: bool):
+def inverse_dft(b: int, n_freq: int, full: bool):
     """``Σ_f e^{ifα_a}``. ``full=False``: half spectrum f ∈ [0, n) of a real signal ->
     ``[n, 2(r), 2B(a)]`` giving ``Σ_f w_f Re(x_f e^{ifα})`` with w_0 = 1, w_f = 2 (the
     conjugate half). ``full=True``: f ∈ (-n, n) -> ``[2n-1, 2(r), 2B(a), 2(re/im out)]``."""
@@ -118,7 +118,7 @@ def _inverse_dft(b: int, n_freq: int, full: bool):
 
 
 @functools.lru_cache(maxsize=None)
-def _s2_tables(b: int, lmax: int):
+def s2_tables(b: int, lmax: int):
     """Wigner-d tables ``[L(m≥0), L(l), 2B(j)]`` for analysis (carrying the quadrature weights
     and the α step 2π/2B) and synthesis."""
     d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[..., lmax - 1:, lmax - 1]  # [j, l, m≥0]
@@ -128,7 +128,7 @@ def _s2_tables(b: int, lmax: int):
 
 
 @functools.lru_cache(maxsize=None)
-def _so3_tables(b: int, lmax: int):
+def so3_tables(b: int, lmax: int):
     """Wigner-d tables ``[2L-1(m), L(n≥0), L(l), 2B(j)]`` for analysis and synthesis."""
     d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[..., lmax - 1:]          # [j, l, m, n≥0]
     scale = (2 * np.arange(lmax) + 1) / (8 * np.pi ** 2) * (2 * np.pi / (2 * b)) ** 2
@@ -152,31 +152,31 @@ def _so3_tables(b: int, lmax: int):
 def s2_analysis(x_XxJxA, lmax: int):
     """Real S2 signals ``[X, 2B, 2B]`` -> spectrum ``[L, L, 2, X]`` (layout above)."""
     b = x_XxJxA.shape[-1] // 2
-    y = jnp.einsum("xja,arm->mjrx", x_XxJxA, _forward_dft(b, lmax, False))
-    return jnp.einsum("mjrx,mlj->mlrx", y, _s2_tables(b, lmax)[0])
+    y = jnp.einsum("xja,arm->mjrx", x_XxJxA, forward_dft(b, lmax, False))
+    return jnp.einsum("mjrx,mlj->mlrx", y, s2_tables(b, lmax)[0])
 
 
 def s2_synthesis(h_MxLx2xX, b: int):
     """Spectrum ``[L, L, 2, X]`` -> real S2 signals ``[X, 2B, 2B]``."""
     lmax = h_MxLx2xX.shape[0]
-    g = jnp.einsum("mlrx,mlj->mjrx", h_MxLx2xX, _s2_tables(b, lmax)[1])
-    return jnp.einsum("mjrx,mra->xja", g, _inverse_dft(b, lmax, False))
+    g = jnp.einsum("mlrx,mlj->mjrx", h_MxLx2xX, s2_tables(b, lmax)[1])
+    return jnp.einsum("mjrx,mra->xja", g, inverse_dft(b, lmax, False))
 
 
 def so3_analysis(x_XxJxAxG, lmax: int):
     """Real SO(3) signals ``[X, 2B, 2B, 2B]`` -> spectrum ``[2L-1, L, L, 2, X]``."""
     b = x_XxJxAxG.shape[-1] // 2
-    y = jnp.einsum("xjag,grn->xjarn", x_XxJxAxG, _forward_dft(b, lmax, False))    # γ
-    y = jnp.einsum("xjarn,arsm->smnxj", y, _forward_dft(b, lmax, True))           # α
-    return jnp.einsum("smnxj,mnlj->mnlsx", y, _so3_tables(b, lmax)[0])            # β
+    y = jnp.einsum("xjag,grn->xjarn", x_XxJxAxG, forward_dft(b, lmax, False))    # γ
+    y = jnp.einsum("xjarn,arsm->smnxj", y, forward_dft(b, lmax, True))           # α
+    return jnp.einsum("smnxj,mnlj->mnlsx", y, so3_tables(b, lmax)[0])            # β
 
 
 def so3_synthesis(h_MxNxLx2xX, b: int):
     """Spectrum ``[2L-1, L, L, 2, X]`` -> real SO(3) signals ``[X, 2B, 2B, 2B]``."""
     lmax = h_MxNxLx2xX.shape[1]
-    g = jnp.einsum("mnlsx,mnlj->mnsxj", h_MxNxLx2xX, _so3_tables(b, lmax)[1])     # β
-    g = jnp.einsum("mnsxj,msar->nxjar", g, _inverse_dft(b, lmax, True))           # α
-    return jnp.einsum("nxjar,nrg->xjag", g, _inverse_dft(b, lmax, False))         # γ
+    g = jnp.einsum("mnlsx,mnlj->mnsxj", h_MxNxLx2xX, so3_tables(b, lmax)[1])     # β
+    g = jnp.einsum("mnsxj,msar->nxjar", g, inverse_dft(b, lmax, True))           # α
+    return jnp.einsum("nxjar,nrg->xjag", g, inverse_dft(b, lmax, False))         # γ
 
 
 # ----------------------------------------------------------------------------------------------

@@ -40,10 +40,12 @@ class Lead(nn.Module):
     # grid function, which Wigner-D rotation then only approximates (measured: 0.29 relative
     # error with it, see tests/test_api.py). Off by default.
     final_relu: bool = False
+    fused: bool = True          # inference path of sphere_jax.fused (same outputs, faster)
 
     def setup(self):
         self.signal = PatchSignal(self.bandwidths[0], self.n_shells)
-        self.encoder = SphericalStack(self.features, self.bandwidths, final_relu=self.final_relu)
+        self.encoder = SphericalStack(self.features, self.bandwidths, final_relu=self.final_relu,
+                                      fused=self.fused)
         self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden)
 
     def encode(self, patches, train: bool = False):

@@ -34,6 +34,7 @@ class Sound(nn.Module):
     decoder_hidden: Sequence[int] = (514, 257, 128)
     temperature: float = 1.0
     window: float | None = None
+    fused: bool = True          # inference path of sphere_jax.fused (same outputs, faster)
 
     def setup(self):
         self.signal = PatchSignal(self.s2_bandwidths[0], self.n_shells)
@@ -42,9 +43,10 @@ class Sound(nn.Module):
         # No ReLU after the descriptor layer: it stays band-limited, so rotating it by its LRF
         # (spectrally) is exact (see models/lead.py).
         self.descriptor = SphericalStack(self.descriptor_features, self.descriptor_bandwidths,
-                                         s2_first=False, final_relu=False)
+                                         s2_first=False, final_relu=False,
+                                         fused=self.fused)
         self.lrf = SphericalStack(self.lrf_features, self.lrf_bandwidths, s2_first=False,
-                                  final_relu=False)
+                                  final_relu=False, fused=self.fused)
         self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden)
 
     def trunk(self, patches, train):

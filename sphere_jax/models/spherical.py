@@ -5,7 +5,7 @@ from typing import Sequence
 
 import flax.linen as nn
 
-from sphere_jax import layers, signal
+from sphere_jax import fused, layers, signal
 
 
 class PatchSignal(nn.Module):
@@ -20,23 +20,40 @@ class PatchSignal(nn.Module):
 class SphericalStack(nn.Module):
     """Convolutions with batch norm between: ``features[i]`` channels from bandwidth
     ``bandwidths[i]`` to ``bandwidths[i + 1]``. The first layer is an S2Conv when ``s2_first``;
-    ReLU after every layer but the last unless ``final_relu``."""
+    ReLU after every layer but the last unless ``final_relu``.
+
+    At inference (``train=False``) with ``fused`` the layers are chained in the spectral domain
+    (:mod:`sphere_jax.fused`): same parameters, same outputs to round-off, about half the time
+    on a CPU. Training uses the layer-by-layer path, whose batch statistics need whole grids.
+    """
     features: Sequence[int]
     bandwidths: Sequence[int]
     s2_first: bool = True
     final_relu: bool = True
     grid: str = "near_identity"
+    fused: bool = True
 
     @nn.compact
     def __call__(self, x, train: bool):
         if len(self.bandwidths) != len(self.features) + 1:
             raise ValueError(f"bandwidths must have one entry more than features, got "
                              f"{self.bandwidths} and {self.features}")
+        convs = [(layers.S2Conv if (i == 0 and self.s2_first) else layers.SO3Conv)(
+            f, self.bandwidths[i], self.bandwidths[i + 1], self.grid)
+            for i, f in enumerate(self.features)]
+        norms = [layers.GridBatchNorm() for _ in self.features]
         last = len(self.features) - 1
-        for i, f in enumerate(self.features):
-            conv = layers.S2Conv if (i == 0 and self.s2_first) else layers.SO3Conv
-            x = conv(f, self.bandwidths[i], self.bandwidths[i + 1], self.grid)(x)
-            x = layers.GridBatchNorm()(x, train)
-            if i < last or self.final_relu:
-                x = nn.relu(x)
-        return x
+        if train or not self.fused:
+            for i, (conv, norm) in enumerate(zip(convs, norms)):
+                x = norm(conv(x), train)
+                if i < last or self.final_relu:
+                    x = nn.relu(x)
+            return x
+        spec = fused.analyse(x, self.bandwidths[1], on_so3=not self.s2_first)
+        for i, (conv, norm) in enumerate(zip(convs, norms)):
+            h = conv(spec)
+            scale, shift = layers.batch_norm_affine(norm, self.features[i])
+            if i < last:
+                spec = fused.pointwise(h, scale, shift, self.bandwidths[i + 2])
+        y = fused.synthesise(h) * scale[:, None, None, None] + shift[:, None, None, None]
+        return nn.relu(y) if self.final_relu else y

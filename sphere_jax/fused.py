@@ -1,0 +1,183 @@
+"""Inference-time fusion of a spherical CNN: layers chained in the spectral domain.
+
+Between two correlations the network leaves the spectral domain only for its pointwise step
+(batch norm, which at inference is a per-channel affine map, and ReLU)::
+
+    spectrum h (bandwidth B) -> SO(3) synthesis -> a·x + b, ReLU -> analysis to L' -> next product
+
+That step acts on every (patch, channel) signal on its own, so it runs in blocks of signals
+whose grids stay in the CPU cache. A layer-by-layer forward pass instead writes every grid to
+memory and reads it back several times (for 40 channels at B = 16 that is 5 MB per patch), and
+on a CPU it is memory bandwidth, not arithmetic, that bounds these transforms.
+
+Inside a block the layouts differ from :mod:`transforms`: spectra are ``[2(re/im), 2L-1(m),
+L(n≥0), L(l), x]`` and grids ``[2B(α), 2B(γ), 2B(β), x]``, so that each step — Wigner-d in β,
+DFT in α, DFT in γ — is one GEMM (or a GEMM batched over its leading axes) with no transposes in
+between. The results equal :mod:`correlation`'s to float32 round-off (tests/test_fused.py).
+"""
+from __future__ import annotations
+
+import functools
+import typing
+
+import numpy as np
+import jax
+import jax.numpy as jnp
+
+from sphere_jax import correlation, transforms
+
+# Grid floats per block: 5 MB of float32 grid (one patch × 40 channels at B = 16) measured
+# fastest on the 2-core development machine (L2 1 MB/core, L3 32 MB); larger blocks spill.
+BLOCK_FLOATS = 40 * 32 ** 3
+
+
+class Spectrum(typing.NamedTuple):
+    """Internal SO(3) or S2 spectrum of N patches × C channels (layouts of :mod:`transforms`:
+    S2 ``[L, L, 2, N·C]``, SO(3) ``[2L-1, L, L, 2, N·C]``) and the bandwidth of the grid it was
+    analysed from."""
+    coeffs: jax.Array
+    channels: int
+    bandwidth: int
+    on_so3: bool
+
+    @property
+    def lmax(self) -> int:
+        return self.coeffs.shape[1]
+
+    @property
+    def n_patches(self) -> int:
+        return self.coeffs.shape[-1] // self.channels
+
+    def block(self, start, count: int):
+        """Coefficients of patches ``start .. start + count`` (``start`` may be traced)."""
+        return jax.lax.dynamic_slice_in_dim(self.coeffs, start * self.channels,
+                                            count * self.channels, axis=self.coeffs.ndim - 1)
+
+
+class S2Product(typing.NamedTuple):
+    """The SO(3) spectrum of an S2 correlation, left as its factors: with few input channels
+    the product is cheap to redo per block, and its dense output (40 channels at B = 16:
+    2·31·16·16 floats per channel) is as large as a grid — not worth writing to memory."""
+    f: Spectrum
+    kernel: jax.Array              # s2_kernel_spectrum blocks
+    channels: int
+    bandwidth: int
+    on_so3 = True
+
+    @property
+    def lmax(self) -> int:
+        return self.bandwidth
+
+    @property
+    def n_patches(self) -> int:
+        return self.f.n_patches
+
+    def block(self, start, count: int):
+        h = correlation.s2_spectral_product(
+            self.f.block(start, count).reshape(self.f.coeffs.shape[:-1] + (count, self.f.channels)),
+            self.kernel)
+        return h.reshape(h.shape[:-2] + (-1,))
+
+    @property
+    def coeffs(self):
+        return self.block(0, self.n_patches)
+
+
+def analyse(x, lmax: int, on_so3: bool) -> Spectrum:
+    """Grids ``[N, C, 2B, 2B(, 2B)]`` -> :class:`Spectrum` truncated to ``lmax``."""
+    grid_ndim = 3 if on_so3 else 2
+    b = transforms.grid_bandwidth(x, grid_ndim)
+    n, c = x.shape[:2]
+    flat = jnp.asarray(x, jnp.float32).reshape((n * c,) + x.shape[2:])
+    fn = transforms.so3_analysis if on_so3 else transforms.s2_analysis
+    return Spectrum(fn(flat, lmax), c, b, on_so3)
+
+
+def correlate(f: Spectrum, w, grid, b_out: int):
+    """The spectral product of :mod:`correlation` on a spectrum already truncated to ``b_out``:
+    the output's SO(3) spectrum (bandwidth ``b_out``), as a :class:`Spectrum` or, from S2, an
+    :class:`S2Product` that :func:`pointwise` evaluates block by block."""
+    if f.lmax != b_out:
+        raise ValueError(f"spectrum has lmax={f.lmax}, the layer needs b_out={b_out}")
+    if not f.on_so3:
+        return S2Product(f, correlation.s2_kernel_spectrum(w, grid, b_out), w.shape[-1], b_out)
+    coeffs = f.coeffs.reshape(f.coeffs.shape[:-1] + (-1, f.channels))
+    h = correlation.so3_spectral_product(coeffs, correlation.so3_kernel_spectrum(w, grid, b_out))
+    return Spectrum(h.reshape(h.shape[:-2] + (-1,)), w.shape[-1], b_out, True)
+
+
+def synthesise(h: Spectrum):
+    """SO(3) spectrum -> grids ``[N, C, 2B, 2B, 2B]`` at its bandwidth."""
+    y = transforms.so3_synthesis(h.coeffs, h.bandwidth)
+    return y.reshape((-1, h.channels) + y.shape[1:])
+
+
+# ----------------------------------------------------------------------------------------------
+# Blocked pointwise step
+# ----------------------------------------------------------------------------------------------
+
+def _tile(t, reps):
+    return np.ascontiguousarray(np.broadcast_to(t[None], (reps,) + t.shape))
+
+
+@functools.lru_cache(maxsize=None)
+def _block_tables(b: int, l_in: int, l_out: int):
+    """Synthesis tables at (B, L_in) and analysis tables at (B, L_out) in the block layouts;
+    the leading axes the GEMMs batch over are tiled (XLA wants batch axes on both operands)."""
+    d_syn = transforms.so3_tables(b, l_in)[1]                          # [m, n, l, j]
+    d_ana = transforms.so3_tables(b, l_out)[0]                         # [m, n, l, j]
+    a_syn = transforms.inverse_dft(b, l_in, True)                      # [m, s, a, r]
+    g_syn = transforms.inverse_dft(b, l_in, False)                     # [n, r, g]
+    g_ana = transforms.forward_dft(b, l_out, False)                    # [g, r, n]
+    a_ana = transforms.forward_dft(b, l_out, True)                     # [a, r, s, m]
+    return (_tile(d_syn.transpose(0, 1, 3, 2), 2),                     # [s, m, n, j, l]
+            np.ascontiguousarray(a_syn.transpose(2, 3, 1, 0)),         # [a, r, s, m]
+            _tile(g_syn.transpose(2, 1, 0), 2 * b),                    # [a, g, r, n]
+            _tile(g_ana.transpose(1, 2, 0), 2 * b),                    # [a, r, n, g]
+            np.ascontiguousarray(a_ana.transpose(2, 3, 0, 1)),         # [s, m, a, r]
+            _tile(d_ana, 2))                                           # [s, m, n, l, j]
+
+
+def _pointwise_block(h_SxMxNxLxX, scale_X, shift_X, tables, relu):
+    d_syn, a_syn, g_syn, g_ana, a_ana, d_ana = tables
+    y = jnp.einsum("smnjl,smnlx->smnjx", d_syn, h_SxMxNxLxX)          # β
+    y = jnp.einsum("arsm,smnjx->arnjx", a_syn, y)                      # α
+    grid = jnp.einsum("agrn,arnjx->agjx", g_syn, y)                    # γ: grid [α, γ, β, x]
+    grid = grid * scale_X + shift_X
+    if relu:
+        grid = jax.nn.relu(grid)
+    y = jnp.einsum("arng,agjx->arnjx", g_ana, grid)                    # γ
+    y = jnp.einsum("smar,arnjx->smnjx", a_ana, y)                      # α
+    return jnp.einsum("smnlj,smnjx->smnlx", d_ana, y)                  # β
+
+
+def _patches_per_block(n_patches, channels, b, block_floats):
+    """The largest divisor of ``n_patches`` whose grids fit in ``block_floats`` (at least 1)."""
+    target = max(1, block_floats // (channels * (2 * b) ** 3))
+    return max(k for k in range(1, min(target, n_patches) + 1) if n_patches % k == 0)
+
+
+def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
+              block_floats: int | None = None) -> Spectrum:
+    """``analysis_{lmax_out}(ReLU(scale · synthesis(h) + shift))`` per channel, in cache-sized
+    blocks of patches. ``h``: :class:`Spectrum` or :class:`S2Product`; ``scale_C``,
+    ``shift_C``: ``[C]``; ``block_floats``: grid floats per block (default
+    :data:`BLOCK_FLOATS`)."""
+    b, l_in, c = h.bandwidth, h.lmax, h.channels
+    transforms.check_sizes(b, lmax_out, "bandwidth")
+    tables = tuple(jnp.asarray(t, jnp.float32) for t in _block_tables(b, l_in, lmax_out))
+    n = h.n_patches
+    k = _patches_per_block(n, c, b, block_floats or BLOCK_FLOATS)
+    scale = jnp.tile(jnp.asarray(scale_C, jnp.float32), k)
+    shift = jnp.tile(jnp.asarray(shift_C, jnp.float32), k)
+    out = jnp.zeros((2 * lmax_out - 1, lmax_out, lmax_out, 2, n * c), jnp.float32)
+
+    # Blocks are sliced off the minor (signal) axis in place: transposing the whole spectrum to
+    # put blocks first would cost two extra passes over memory.
+    def body(i, out):
+        hb = jnp.transpose(h.block(i * k, k), (3, 0, 1, 2, 4))          # [s, m, n, l, x]
+        fb = _pointwise_block(hb, scale, shift, tables, relu)
+        return jax.lax.dynamic_update_slice_in_dim(out, jnp.transpose(fb, (1, 2, 3, 0, 4)),
+                                                   i * k * c, axis=4)
+
+    return Spectrum(jax.lax.fori_loop(0, n // k, body, out), c, b, True)

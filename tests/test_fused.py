@@ -1,0 +1,101 @@
+"""The fused inference path against the layer-by-layer one it replaces."""
+import numpy as np
+import jax
+import jax.numpy as jnp
+import pytest
+
+from sphere_jax import correlation, fused, layers, transforms
+from sphere_jax.models.spherical import SphericalStack
+from tests import reference
+from tests.reference import rel_err
+
+
+def _spectrum(rng, n, c, b, lmax):
+    x = transforms.so3_ifft(reference.random_so3_coeffs(rng, (n, c), lmax), b)
+    return fused.analyse(x, lmax, on_so3=True)
+
+
+@pytest.mark.parametrize("block_floats", [1, 2 * 3 * 12 ** 3, 10 ** 9])
+def test_pointwise_equals_synthesis_relu_analysis(block_floats):
+    """Blocks of 1, 2 and all 6 patches; the reference runs :mod:`transforms` on whole grids."""
+    rng = np.random.default_rng(0)
+    n, c, b, l_out = 6, 3, 6, 4
+    h = _spectrum(rng, n, c, b, b)
+    scale, shift = rng.normal(size=c), rng.normal(size=c)
+    got = fused.pointwise(h, scale, shift, l_out, block_floats=block_floats)
+    grid = fused.synthesise(h) * scale[:, None, None, None] + shift[:, None, None, None]
+    want = transforms.so3_analysis(jax.nn.relu(grid).reshape((n * c,) + grid.shape[2:]), l_out)
+    assert got.coeffs.shape == want.shape
+    assert rel_err(got.coeffs, want) < 1e-5
+    assert rel_err(fused.pointwise(h, scale, shift, l_out, relu=False).coeffs,
+                   transforms.so3_analysis(grid.reshape(want.shape[-1:] + grid.shape[2:]),
+                                           l_out)) < 1e-5
+
+
+def test_s2_product_blocks_equal_whole_product():
+    rng = np.random.default_rng(1)
+    x = transforms.s2_ifft(reference.random_s2_coeffs(rng, (4, 2), 5), 5)
+    grid = correlation.make_grid("near_identity", on_so3=False)
+    w = jnp.asarray(rng.normal(size=grid.shape + (2, 3)), jnp.float32)
+    prod = fused.correlate(fused.analyse(x, 4, on_so3=False), w, grid, 4)
+    want = correlation.s2_correlate(x, w, grid, 4)
+    assert rel_err(fused.synthesise(prod), want) < 1e-5
+    whole = prod.coeffs
+    per_patch = whole.shape[-1] // 4
+    assert rel_err(prod.block(2, 2), whole[..., 2 * per_patch:]) < 1e-6
+
+
+@pytest.mark.parametrize("s2_first, final_relu", [(True, False), (True, True), (False, False)])
+def test_stack_fused_equals_layer_by_layer(s2_first, final_relu):
+    rng = np.random.default_rng(2)
+    bands, feats = (8, 6, 5, 4), (5, 4, 2)
+    if s2_first:
+        x = transforms.s2_ifft(reference.random_s2_coeffs(rng, (3, 2), 8), 8)
+    else:
+        x = jax.nn.relu(transforms.so3_ifft(reference.random_so3_coeffs(rng, (3, 2), 8), 8))
+    stack = SphericalStack(feats, bands, s2_first=s2_first, final_relu=final_relu)
+    variables = stack.init(jax.random.PRNGKey(0), x, train=False)
+    # Batch statistics away from (0, 1), so that the affine step is exercised.
+    stats = jax.tree_util.tree_map(lambda a: a + jnp.asarray(rng.uniform(0.2, 0.8, a.shape),
+                                                             jnp.float32),
+                                   variables["batch_stats"])
+    variables = {"params": variables["params"], "batch_stats": stats}
+    want = stack.clone(fused=False).apply(variables, x, train=False)
+    got = jax.jit(lambda v, x: stack.apply(v, x, train=False))(variables, x)
+    assert got.shape == want.shape == (3, 2, 8, 8, 8)
+    assert rel_err(got, want) < 1e-5
+    # Same parameter tree either way: bundles trained before fusion load unchanged.
+    plain = stack.clone(fused=False).init(jax.random.PRNGKey(0), x, train=False)
+    assert jax.tree_util.tree_structure(plain) == jax.tree_util.tree_structure(variables)
+
+
+def test_batch_norm_affine_matches_module():
+    rng = np.random.default_rng(3)
+    x = jnp.asarray(rng.normal(size=(2, 3, 4, 4, 4)), jnp.float32)
+    norm = layers.GridBatchNorm()
+    v = norm.init(jax.random.PRNGKey(0), x, train=False)
+    v = {"params": v["params"], "batch_stats": {"BatchNorm_0": {
+        "mean": jnp.array([0.1, -0.2, 0.3]), "var": jnp.array([0.5, 2.0, 1.5])}}}
+    scale, shift = norm.apply(v, 3, method=lambda m, c: layers.batch_norm_affine(m, c))
+    want = norm.apply(v, x, train=False)
+    assert rel_err(x * scale[:, None, None, None] + shift[:, None, None, None], want) < 1e-6
+
+
+def test_errors_name_the_mismatch():
+    rng = np.random.default_rng(4)
+    h = _spectrum(rng, 2, 3, 6, 4)
+    conv = layers.SO3Conv(features=2, b_in=8, b_out=4)
+    with pytest.raises(ValueError, match="b_in=8"):
+        conv.init(jax.random.PRNGKey(0), h)
+    grid = correlation.make_grid("near_identity", on_so3=True)
+    with pytest.raises(ValueError, match="lmax=4"):
+        fused.correlate(h, jnp.zeros(grid.shape + (3, 2)), grid, 3)
+    with pytest.raises(ValueError, match="lmax"):
+        fused.pointwise(h, np.ones(3), np.zeros(3), 7)
+
+
+def test_blocks_divide_the_patches():
+    assert fused._patches_per_block(12, 40, 16, 40 * 32 ** 3) == 1
+    assert fused._patches_per_block(12, 40, 8, 40 * 32 ** 3) == 6      # target 8, divides 12
+    assert fused._patches_per_block(7, 40, 8, 40 * 32 ** 3) == 7
+    assert fused._patches_per_block(5, 40, 24, 1) == 1
