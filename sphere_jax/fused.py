@@ -48,10 +48,9 @@ class Spectrum(typing.NamedTuple):
     def n_patches(self) -> int:
         return self.coeffs.shape[-1] // self.channels
 
-    def block(self, start, count: int):
-        """Coefficients of patches ``start .. start + count`` (``start`` may be traced)."""
-        return jax.lax.dynamic_slice_in_dim(self.coeffs, start * self.channels,
-                                            count * self.channels, axis=self.coeffs.ndim - 1)
+    def block(self, start, size: int):
+        """Coefficients of signals ``start .. start + size`` (``start`` may be traced)."""
+        return jax.lax.dynamic_slice_in_dim(self.coeffs, start, size, self.coeffs.ndim - 1)
 
 
 class S2Product(typing.NamedTuple):
@@ -72,15 +71,21 @@ class S2Product(typing.NamedTuple):
     def n_patches(self) -> int:
         return self.f.n_patches
 
-    def block(self, start, count: int):
-        h = correlation.s2_spectral_product(
-            self.f.block(start, count).reshape(self.f.coeffs.shape[:-1] + (count, self.f.channels)),
-            self.kernel)
+    def block(self, start, size: int):
+        """Signals ``start .. start + size``: whole patches (``size`` a multiple of the
+        channels) or some channels of one patch (``size`` divides the channels)."""
+        c, c_in = self.channels, self.f.channels
+        if size % c == 0:
+            f, kernel, count = self.f.block(start // c * c_in, size // c * c_in), self.kernel, size // c
+        else:
+            f, count = self.f.block(start // c * c_in, c_in), 1
+            kernel = jax.lax.dynamic_slice_in_dim(self.kernel, start % c, size, self.kernel.ndim - 1)
+        h = correlation.s2_spectral_product(f.reshape(f.shape[:-1] + (count, c_in)), kernel)
         return h.reshape(h.shape[:-2] + (-1,))
 
     @property
     def coeffs(self):
-        return self.block(0, self.n_patches)
+        return self.block(0, self.n_patches * self.channels)
 
 
 def analyse(x, lmax: int, on_so3: bool) -> Spectrum:
@@ -151,33 +156,39 @@ def _pointwise_block(h_SxMxNxLxX, scale_X, shift_X, tables, relu):
     return jnp.einsum("smnlj,smnjx->smnlx", d_ana, y)                  # β
 
 
-def _patches_per_block(n_patches, channels, b, block_floats):
-    """The largest divisor of ``n_patches`` whose grids fit in ``block_floats`` (at least 1)."""
-    target = max(1, block_floats // (channels * (2 * b) ** 3))
-    return max(k for k in range(1, min(target, n_patches) + 1) if n_patches % k == 0)
+def _signals_per_block(n_patches, channels, b, block_floats):
+    """Signals per block: whole patches (a divisor of ``n_patches`` times the channels) or, when
+    one patch's grids exceed ``block_floats``, a divisor of the channels; the largest that fits
+    (at least 1)."""
+    target = max(1, block_floats // (2 * b) ** 3)
+    sizes = [k * channels for k in range(1, n_patches + 1) if n_patches % k == 0]
+    sizes += [d for d in range(1, channels) if channels % d == 0]
+    return max([x for x in sizes if x <= target] or [1])
 
 
 def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
               block_floats: int | None = None) -> Spectrum:
     """``analysis_{lmax_out}(ReLU(scale · synthesis(h) + shift))`` per channel, in cache-sized
-    blocks of patches. ``h``: :class:`Spectrum` or :class:`S2Product`; ``scale_C``,
+    blocks of signals. ``h``: :class:`Spectrum` or :class:`S2Product`; ``scale_C``,
     ``shift_C``: ``[C]``; ``block_floats``: grid floats per block (default
     :data:`BLOCK_FLOATS`)."""
     b, l_in, c = h.bandwidth, h.lmax, h.channels
     transforms.check_sizes(b, lmax_out, "bandwidth")
     tables = tuple(jnp.asarray(t, jnp.float32) for t in _block_tables(b, l_in, lmax_out))
     n = h.n_patches
-    k = _patches_per_block(n, c, b, block_floats or BLOCK_FLOATS)
-    scale = jnp.tile(jnp.asarray(scale_C, jnp.float32), k)
-    shift = jnp.tile(jnp.asarray(shift_C, jnp.float32), k)
+    size = _signals_per_block(n, c, b, block_floats or BLOCK_FLOATS)
+    scale = jnp.tile(jnp.asarray(scale_C, jnp.float32), n)
+    shift = jnp.tile(jnp.asarray(shift_C, jnp.float32), n)
     out = jnp.zeros((2 * lmax_out - 1, lmax_out, lmax_out, 2, n * c), jnp.float32)
 
     # Blocks are sliced off the minor (signal) axis in place: transposing the whole spectrum to
     # put blocks first would cost two extra passes over memory.
     def body(i, out):
-        hb = jnp.transpose(h.block(i * k, k), (3, 0, 1, 2, 4))          # [s, m, n, l, x]
-        fb = _pointwise_block(hb, scale, shift, tables, relu)
+        start = i * size
+        hb = jnp.transpose(h.block(start, size), (3, 0, 1, 2, 4))       # [s, m, n, l, x]
+        fb = _pointwise_block(hb, jax.lax.dynamic_slice_in_dim(scale, start, size),
+                              jax.lax.dynamic_slice_in_dim(shift, start, size), tables, relu)
         return jax.lax.dynamic_update_slice_in_dim(out, jnp.transpose(fb, (1, 2, 3, 0, 4)),
-                                                   i * k * c, axis=4)
+                                                   start, axis=4)
 
-    return Spectrum(jax.lax.fori_loop(0, n // k, body, out), c, b, True)
+    return Spectrum(jax.lax.fori_loop(0, n * c // size, body, out), c, b, True)

@@ -17,7 +17,8 @@ def _spectrum(rng, n, c, b, lmax):
 
 @pytest.mark.parametrize("block_floats", [1, 2 * 3 * 12 ** 3, 10 ** 9])
 def test_pointwise_equals_synthesis_relu_analysis(block_floats):
-    """Blocks of 1, 2 and all 6 patches; the reference runs :mod:`transforms` on whole grids."""
+    """Blocks of one channel, of 2 patches and of all 6; the reference runs :mod:`transforms`
+    on whole grids."""
     rng = np.random.default_rng(0)
     n, c, b, l_out = 6, 3, 6, 4
     h = _spectrum(rng, n, c, b, b)
@@ -40,9 +41,9 @@ def test_s2_product_blocks_equal_whole_product():
     prod = fused.correlate(fused.analyse(x, 4, on_so3=False), w, grid, 4)
     want = correlation.s2_correlate(x, w, grid, 4)
     assert rel_err(fused.synthesise(prod), want) < 1e-5
-    whole = prod.coeffs
-    per_patch = whole.shape[-1] // 4
-    assert rel_err(prod.block(2, 2), whole[..., 2 * per_patch:]) < 1e-6
+    whole = prod.coeffs                                               # 4 patches x 3 channels
+    assert rel_err(prod.block(6, 6), whole[..., 6:]) < 1e-6             # patches 2, 3
+    assert rel_err(prod.block(7, 1), whole[..., 7:8]) < 1e-6            # patch 2, channel 1
 
 
 @pytest.mark.parametrize("s2_first, final_relu", [(True, False), (True, True), (False, False)])
@@ -94,8 +95,9 @@ def test_errors_name_the_mismatch():
         fused.pointwise(h, np.ones(3), np.zeros(3), 7)
 
 
-def test_blocks_divide_the_patches():
-    assert fused._patches_per_block(12, 40, 16, 40 * 32 ** 3) == 1
-    assert fused._patches_per_block(12, 40, 8, 40 * 32 ** 3) == 6      # target 8, divides 12
-    assert fused._patches_per_block(7, 40, 8, 40 * 32 ** 3) == 7
-    assert fused._patches_per_block(5, 40, 24, 1) == 1
+def test_blocks_divide_the_signals():
+    assert fused._signals_per_block(12, 40, 16, 40 * 32 ** 3) == 40        # one patch
+    assert fused._signals_per_block(12, 40, 8, 40 * 32 ** 3) == 6 * 40     # 8 fit, 6 divides 12
+    assert fused._signals_per_block(7, 40, 8, 40 * 32 ** 3) == 7 * 40
+    assert fused._signals_per_block(8, 40, 24, 40 * 32 ** 3) == 10         # channels of a patch
+    assert fused._signals_per_block(5, 40, 24, 1) == 1
