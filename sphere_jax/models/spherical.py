@@ -23,8 +23,9 @@ class SphericalStack(nn.Module):
     ReLU after every layer but the last unless ``final_relu``.
 
     At inference (``train=False``) with ``fused`` the layers are chained in the spectral domain
-    (:mod:`sphere_jax.fused`): same parameters, same outputs to round-off, about half the time
-    on a CPU. Training uses the layer-by-layer path, whose batch statistics need whole grids.
+    (:mod:`sphere_jax.fused`): same parameters, same outputs to round-off, less memory traffic
+    (LEAD 'paper' in about half the time on a CPU, B = 24 stacks about 10 % faster). Training
+    uses the layer-by-layer path, whose batch statistics need whole grids.
     """
     features: Sequence[int]
     bandwidths: Sequence[int]
