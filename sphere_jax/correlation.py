@@ -258,18 +258,22 @@ def _spectral_correlate(x, w, grid, b_out, on_so3):
     _check_band_change(b_in, b_out)
     xf, lead = _flatten_batch(jnp.asarray(x, jnp.float32), grid_ndim + 1)
     n, c = xf.shape[:2]
-    grid_shape = xf.shape[2:]
-    x_flat = xf.reshape((n * c,) + grid_shape)
-    if on_so3:
-        f = transforms.so3_analysis(x_flat, b_out)
-        h = so3_spectral_product(f.reshape(f.shape[:-1] + (n, c)),
-                                 so3_kernel_spectrum(w, grid, b_out))
-    else:
-        f = transforms.s2_analysis(x_flat, b_out)
-        h = s2_spectral_product(f.reshape(f.shape[:-1] + (n, c)),
-                                s2_kernel_spectrum(w, grid, b_out))
-    y = transforms.so3_synthesis(h.reshape(h.shape[:-2] + (-1,)), b_out)
+    x_flat = xf.reshape((n * c,) + xf.shape[2:])
+    analysis = transforms.so3_analysis if on_so3 else transforms.s2_analysis
+    h = spectral_product(analysis(x_flat, b_out), c, w, grid, b_out, on_so3)
+    y = transforms.so3_synthesis(h, b_out)
     return y.reshape(lead + (w.shape[-1],) + (2 * b_out,) * 3)
+
+
+def spectral_product(f, channels: int, w, grid: KernelGrid, lmax: int, on_so3: bool):
+    """Internal S2 or SO(3) spectrum ``[..., N·C]`` (C = ``channels`` minor) -> the SO(3)
+    spectrum ``[2L-1, L, L, 2, N·D]`` of its correlation with the kernel ``w``."""
+    f = f.reshape(f.shape[:-1] + (-1, channels))
+    if on_so3:
+        h = so3_spectral_product(f, so3_kernel_spectrum(w, grid, lmax))
+    else:
+        h = s2_spectral_product(f, s2_kernel_spectrum(w, grid, lmax))
+    return h.reshape(h.shape[:-2] + (-1,))
 
 
 def s2_correlate(x, w, grid: KernelGrid, b_out: int):

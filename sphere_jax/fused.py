@@ -106,9 +106,8 @@ def correlate(f: Spectrum, w, grid, b_out: int):
         raise ValueError(f"spectrum has lmax={f.lmax}, the layer needs b_out={b_out}")
     if not f.on_so3:
         return S2Product(f, correlation.s2_kernel_spectrum(w, grid, b_out), w.shape[-1], b_out)
-    coeffs = f.coeffs.reshape(f.coeffs.shape[:-1] + (-1, f.channels))
-    h = correlation.so3_spectral_product(coeffs, correlation.so3_kernel_spectrum(w, grid, b_out))
-    return Spectrum(h.reshape(h.shape[:-2] + (-1,)), w.shape[-1], b_out, True)
+    h = correlation.spectral_product(f.coeffs, f.channels, w, grid, b_out, on_so3=True)
+    return Spectrum(h, w.shape[-1], b_out, True)
 
 
 def synthesise(h: Spectrum):
