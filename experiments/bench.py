@@ -7,7 +7,8 @@ fragment — timing keypoint selection and patch extraction, then the spherical 
 Models suite (``--suite=models [--sizes=cpu,paper]``): forward and training-step time of every
 config at its configured batch, and LEAD/SOUND description time per keypoint for 5000 keypoints
 of the 3DMatch kitchen fragment (when ``../shared/data`` is present), with the fused inference
-path of :mod:`sphere_jax.fused` (the default) and layer by layer (``unfused``).
+path of :mod:`sphere_jax.fused` (the default) and layer by layer (``unfused``), with
+``describe_workers`` chunks of 256 keypoints run at a time (:func:`sphere_jax.api.run_chunked`).
 
 Registration suite (``--suite=registration``): one 3DMatch pair (kitchen 0–5 from
 ``../shared/data``, else the first synthetic pair) with 5000 keypoints per fragment, evaluated
@@ -176,7 +177,7 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
             step_ms = _median_ms(lambda: step(state, batch)[1]["loss"], repeats)
             rec = {"config": f"{name}:{size}", "batch": bs, "fwd_ms": round(fwd_ms, 1),
                    "train_step_ms": round(step_ms, 1), "describe_ms_per_kp": "",
-                   "unfused_ms_per_kp": ""}
+                   "unfused_ms_per_kp": "", "describe_workers": ""}
             if name in ("lead", "sound") and cloud is not None:
                 down = patches.voxel_downsample(cloud, 0.02)
                 kp = patches.random_keypoints(down, keypoints, np.random.default_rng(0))
@@ -186,6 +187,7 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
                     t0 = time.perf_counter()
                     bundle.describe(down, kp, radius=0.3)
                     rec[key] = round(1e3 * (time.perf_counter() - t0) / len(kp), 3)
+                rec["describe_workers"] = api.default_workers()     # chunks run at a time
             records.append(rec)
             print(json.dumps(rec), file=sys.stderr, flush=True)     # partial results survive
     return records

@@ -80,11 +80,29 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     bundle = api.load_bundle(tmp_path / "bundle")
     cloud = np.random.default_rng(1).uniform(-1, 1, (3000, 3)).astype(np.float32)
     kp = np.arange(7)
-    d1 = bundle.describe(cloud, kp, radius=0.5, chunk=3)
+    d1 = bundle.describe(cloud, kp, radius=0.5, chunk=3, workers=1)
     d2 = bundle.describe(cloud, kp, radius=0.5, chunk=256)
     assert d1.shape == (7, 512) and np.allclose(d1, d2, atol=1e-5)
+    # Concurrent chunks: same rows, same order, bit for bit (the last chunk is padded).
+    assert np.array_equal(bundle.describe(cloud, kp, radius=0.5, chunk=3, workers=3), d1)
     assert bundle.orient(cloud, cloud[:5], radius=0.5).shape == (5, 3, 3)   # by coordinates
     with pytest.raises(ValueError, match="no neighbour"):
         bundle.orient(np.concatenate([cloud, [[9.0, 9.0, 9.0]]]), [3000], radius=0.5)
     with pytest.raises(FileNotFoundError, match="not a bundle"):
         api.load_bundle(tmp_path)
+
+
+def test_run_chunked_order_padding_and_workers():
+    calls = []
+
+    def fn(x):
+        calls.append(len(x))
+        return x * 2
+
+    x = np.arange(10, dtype=np.float32)[:, None]
+    for workers in (1, 2, 4):
+        calls.clear()
+        out = api.run_chunked(fn, x, 4, workers)
+        assert np.array_equal(out, x * 2) and calls == [4, 4, 4]     # padded to one shape
+    assert api.run_chunked(fn, x[:0], 4).shape == (0,)
+    assert api.default_workers() >= 1
