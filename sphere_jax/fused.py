@@ -98,6 +98,19 @@ def analyse(x, lmax: int, on_so3: bool) -> Spectrum:
     return Spectrum(fn(flat, lmax), c, b, on_so3)
 
 
+def truncate(f: Spectrum, lmax: int) -> Spectrum:
+    """The spectrum's degrees below ``lmax``: what analysing its grid to ``lmax`` would give
+    (per-degree quadrature), so one analysis can feed layers of different output bandwidths."""
+    if not 1 <= lmax <= f.lmax:
+        raise ValueError(f"lmax must be in [1, {f.lmax}] (the spectrum's), got {lmax}")
+    if lmax == f.lmax:
+        return f
+    big = f.lmax
+    c = f.coeffs[:lmax, :lmax] if not f.on_so3 else \
+        f.coeffs[big - lmax:big + lmax - 1, :lmax, :lmax]
+    return f._replace(coeffs=c)
+
+
 def correlate(f: Spectrum, w, grid, b_out: int):
     """The spectral product of :mod:`correlation` on a spectrum already truncated to ``b_out``:
     the output's SO(3) spectrum (bandwidth ``b_out``), as a :class:`Spectrum` or, from S2, an

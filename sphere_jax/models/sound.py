@@ -14,7 +14,7 @@ from typing import Sequence
 import flax.linen as nn
 import jax
 
-from sphere_jax import layers, soft_argmax
+from sphere_jax import fused, layers, soft_argmax
 from sphere_jax.models.folding import FoldingDecoder
 from sphere_jax.models.lead import canonical_descriptors
 from sphere_jax.models.spherical import PatchSignal, SphericalStack
@@ -50,7 +50,16 @@ class Sound(nn.Module):
         self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden)
 
     def trunk(self, patches, train):
-        return nn.relu(self.s2_norm(self.s2(self.signal(patches)), train))
+        """The shared S2 layer's output: grids ``[N, C, 2B, 2B, 2B]``, or at inference with
+        ``fused`` their spectrum (:mod:`sphere_jax.fused`) — at B = 24 the grids of a chunk of
+        256 patches would take 4.5 GB."""
+        x = self.signal(patches)
+        if train or not self.fused:
+            return nn.relu(self.s2_norm(self.s2(x), train))
+        lmax = max(self.descriptor_bandwidths[1], self.lrf_bandwidths[1])
+        h = self.s2(fused.analyse(x, self.s2_bandwidths[1], on_so3=False))
+        scale, shift = layers.batch_norm_affine(self.s2_norm, self.s2_features)
+        return fused.pointwise(h, scale, shift, lmax)
 
     def __call__(self, patches, train: bool = False):
         h = self.trunk(patches, train)

@@ -25,7 +25,9 @@ class SphericalStack(nn.Module):
     At inference (``train=False``) with ``fused`` the layers are chained in the spectral domain
     (:mod:`sphere_jax.fused`): same parameters, same outputs to round-off, less memory traffic
     (LEAD 'paper' in about half the time on a CPU, B = 24 stacks about 10 % faster). Training
-    uses the layer-by-layer path, whose batch statistics need whole grids.
+    uses the layer-by-layer path, whose batch statistics need whole grids. On that path the
+    input may also be a :class:`fused.Spectrum` of the input grids (analysed to at least
+    ``bandwidths[1]``).
     """
     features: Sequence[int]
     bandwidths: Sequence[int]
@@ -45,12 +47,18 @@ class SphericalStack(nn.Module):
         norms = [layers.GridBatchNorm() for _ in self.features]
         last = len(self.features) - 1
         if train or not self.fused:
+            if isinstance(x, fused.Spectrum):
+                raise ValueError("a spectrum input needs the fused inference path "
+                                 "(fused=True, train=False)")
             for i, (conv, norm) in enumerate(zip(convs, norms)):
                 x = norm(conv(x), train)
                 if i < last or self.final_relu:
                     x = nn.relu(x)
             return x
-        spec = fused.analyse(x, self.bandwidths[1], on_so3=not self.s2_first)
+        if isinstance(x, fused.Spectrum):          # a shared trunk's output (SOUND)
+            spec = fused.truncate(x, self.bandwidths[1])
+        else:
+            spec = fused.analyse(x, self.bandwidths[1], on_so3=not self.s2_first)
         for i, (conv, norm) in enumerate(zip(convs, norms)):
             h = conv(spec)
             scale, shift = layers.batch_norm_affine(norm, self.features[i])
