@@ -27,6 +27,9 @@ def base(size: str) -> ml_collections.ConfigDict:
         val_fraction=0.1,         # keypoints held out for the validation loss
         occlusion=True,           # occlude the rotated copy (seed 3.1.5)
     ))
+    # Patches per jitted inference call (api.Bundle.orient/describe); memory grows with it and
+    # with the chunks run at a time (api.run_chunked).
+    c.infer_chunk = 256
     c.train = ml_collections.ConfigDict(dict(
         steps=50_000, batch_size=8, learning_rate=1e-3, log_every=50, eval_every=1000,
         eval_batches=4, checkpoint_every=1000, keep_checkpoints=3))

@@ -37,7 +37,7 @@ def base(arg) -> ml_collections.ConfigDict:
     c.bundles = ml_collections.ConfigDict(dict(
         lead=shipped("lead_cpu"), compass=shipped("compass_cpu"), lead_pn=shipped("lead_pn_cpu"),
         sound=shipped("sound_cpu")))
-    c.chunk = 256
+    c.chunk = ml_collections.config_dict.placeholder(int)    # None: each bundle's infer_chunk
     if size == "quick":
         c.data.update(n_keypoints=2500, max_pairs=8)
     elif size == "tiny":

@@ -24,5 +24,9 @@ def get_config(arg=None):
         "tiny": dict(s2_bandwidths=(4, 4), s2_features=4, descriptor_bandwidths=(4, 4, 4),
                      descriptor_features=(4, 1), lrf_bandwidths=(4, 4, 4), lrf_features=(2, 1)),
     }[size]
+    if size == "paper":
+        # Its B = 24 SO(3) spectra take ~40 MB per patch at inference (chunk 256 of SOUND
+        # peaked at 10 GB): two chunks of 64 in flight stay well inside 24 GB.
+        c.infer_chunk = 64
     c.model_kwargs.update(common.decoder_kwargs(size))
     return c

@@ -37,7 +37,7 @@ def _bundle(bundle_or_path):
     return bundle_or_path
 
 
-def orient(bundle, points, keypoints, radius=None, chunk=256, seed=0):
+def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0):
     """Local reference frames from a Compass or SOUND bundle.
 
     Args:
@@ -45,8 +45,9 @@ def orient(bundle, points, keypoints, radius=None, chunk=256, seed=0):
       points: ``[N, 3]`` float cloud, metres (e.g. voxelised at 2 cm for 3DMatch).
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's training radius, 0.3 m).
-      chunk: patches per jitted, vmapped call; memory stays bounded for any K and the
-        function compiles once.
+      chunk: patches per jitted, vmapped call (default: the bundle's ``infer_chunk``); memory
+        stays bounded for any K and the function compiles once. Chunks run concurrently, one
+        per core (:func:`sphere_jax.api.run_chunked`).
       seed: seed of the patch resampling (N points drawn with replacement per support).
 
     Returns:
@@ -55,7 +56,7 @@ def orient(bundle, points, keypoints, radius=None, chunk=256, seed=0):
     return _bundle(bundle).orient(points, keypoints, radius=radius, chunk=chunk, seed=seed)
 
 
-def describe(bundle, points, keypoints, radius=None, chunk=256, seed=0, frames=None):
+def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=None):
     """Rotation-invariant local descriptors from a LEAD, LEAD-PN or SOUND bundle.
 
     LEAD's SO(3) descriptor is turned to canonical pose by ``frames`` (``[K, 3, 3]``, e.g.

@@ -30,6 +30,7 @@ from sphere_jax.models.lead import canonical_descriptors
 
 
 FLARE_BATCH = jax.jit(jax.vmap(lrf.flare))
+DEFAULT_CHUNK = 256         # patches per call when neither the caller nor the bundle says
 
 
 @dataclasses.dataclass
@@ -43,6 +44,12 @@ class Bundle:
     def kind(self):
         return self.config.model
 
+    @property
+    def chunk(self) -> int:
+        """Patches per jitted call by default (``config.infer_chunk``; bundles written before
+        it existed: :data:`DEFAULT_CHUNK`)."""
+        return int(self.config.get("infer_chunk", DEFAULT_CHUNK))
+
     # ---- patches ----------------------------------------------------------------------------
 
     def patches(self, points, keypoints, radius=None, seed=0):
@@ -53,39 +60,40 @@ class Bundle:
 
     # ---- LRFs and descriptors ---------------------------------------------------------------
 
-    def orient(self, points, keypoints, radius=None, chunk=256, seed=0, workers=None):
+    def orient(self, points, keypoints, radius=None, chunk=None, seed=0, workers=None):
         """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles)."""
         if self.kind not in ("compass", "sound"):
             raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
         return run_chunked(self._orient_fn, self.patches(points, keypoints, radius, seed),
-                           chunk, workers)
+                           chunk or self.chunk, workers)
 
-    def orient_patches(self, patches_KxNx3, chunk=256, workers=None):
+    def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
         :func:`sphere_jax.data.pipeline.unit_shapes`)."""
         if self.kind not in ("compass", "sound"):
             raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
-        return run_chunked(self._orient_fn, np.asarray(patches_KxNx3, np.float32), chunk, workers)
+        return run_chunked(self._orient_fn, np.asarray(patches_KxNx3, np.float32),
+                           chunk or self.chunk, workers)
 
-    def describe(self, points, keypoints, radius=None, chunk=256, seed=0, frames=None,
+    def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
                  workers=None):
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
         ``frames`` (``[K, 3, 3]``, e.g. from a Compass bundle) or, by default, FLARE; LEAD-PN:
         the code of the FLARE-oriented patch; SOUND: self-oriented."""
         p = self.patches(points, keypoints, radius, seed)
         if self.kind == "sound":
-            return run_chunked(self._sound_fn, p, chunk, workers)
+            return run_chunked(self._sound_fn, p, chunk or self.chunk, workers)
         if self.kind == "lead_pn":
-            return run_chunked(self._lead_pn_fn, p, chunk, workers)
+            return run_chunked(self._lead_pn_fn, p, chunk or self.chunk, workers)
         if self.kind != "lead":
             raise ValueError(f"describe needs a lead, lead_pn or sound bundle, not {self.kind!r}")
         if frames is None:
-            frames = run_chunked(FLARE_BATCH, p, chunk, workers)
+            frames = run_chunked(FLARE_BATCH, p, chunk or self.chunk, workers)
         frames = np.asarray(frames, np.float32)
         if frames.shape != (len(p), 3, 3):
             raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
         both = np.concatenate([p.reshape(len(p), -1), frames.reshape(len(p), 9)], 1)
-        return run_chunked(self._lead_fn, both, chunk, workers)
+        return run_chunked(self._lead_fn, both, chunk or self.chunk, workers)
 
     # ---- jitted pieces ----------------------------------------------------------------------
 
@@ -108,7 +116,7 @@ class Bundle:
         self._lead_fn, self._sound_fn, self._lead_pn_fn = map(jax.jit, (lead, sound, lead_pn))
 
 
-def run_chunked(fn, x, chunk, workers=None):
+def run_chunked(fn, x, chunk=None, workers=None):
     """``fn`` over ``x`` in chunks of a fixed size (the last one padded), so a jitted ``fn``
     compiles once whatever the number of rows; ``workers`` chunks run at a time (default:
     :func:`default_workers`).
@@ -118,7 +126,7 @@ def run_chunked(fn, x, chunk, workers=None):
     core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
     Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
     """
-    chunk = max(1, int(chunk))
+    chunk = max(1, int(chunk or DEFAULT_CHUNK))
     x = np.asarray(x)
     if len(x) == 0:
         return np.zeros((0,))

@@ -62,7 +62,7 @@ def _on_supported(f: Fragment, radius, fn):
     return out
 
 
-def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=256):
+def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     """``describe(fragment) -> [K, D]`` for method ``name`` with support ``radius`` (metres);
     ``bundles`` maps a model kind (lead, compass, lead_pn, sound) to a bundle path."""
     bundles = bundles or {}
@@ -93,7 +93,7 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=256):
         f, radius, lambda kp: model.describe(f.points, kp, radius=radius, chunk=chunk))
 
 
-def lrf(name, radius, bundles=None, chunk=256):
+def lrf(name, radius, bundles=None, chunk=None):
     """``orient(fragment, indices) -> [K, 3, 3]`` for LRF method ``name``."""
     bundles = bundles or {}
     if name not in LRFS:
