@@ -24,7 +24,7 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import correlation, transforms
+from sphere_jax import correlation, so3, transforms
 
 # Grid floats per block: 5 MB of float32 grid (one patch × 40 channels at B = 16) measured
 # fastest on the 2-core development machine (L2 1 MB/core, L3 32 MB); larger blocks spill.
@@ -137,34 +137,77 @@ def _tile(t, reps):
     return np.ascontiguousarray(np.broadcast_to(t[None], (reps,) + t.shape))
 
 
+def _f32(t):
+    return np.ascontiguousarray(t, np.float32)
+
+
+def _half_dft(b: int, inverse: bool):
+    """The α DFT split by the parity p of the grid index a = 2a' + p (radix 2): frequencies m
+    and m - B differ on sub-grid p by the factor (-1)^p, so each sub-grid needs only the B
+    folded frequencies q = m mod B — half the multiplications of the full DFT.
+
+    ``inverse``: ``e^{iqα}``, ``[p, a', r(re/im out), s(re/im in), q]``; else ``e^{-iqα}``,
+    ``[p, s(out), q, a', r(in)]``."""
+    alpha = so3.grid_alpha(b).reshape(b, 2).T                          # [p, a']: a = 2a' + p
+    angle = alpha[:, :, None] * np.arange(b)                           # [p, a', q]
+    c, s = np.cos(angle), np.sin(angle)
+    if inverse:    # (x_re + i x_im)(cos + i sin)
+        return _f32(np.stack([np.stack([c, -s], 2), np.stack([s, c], 2)], 2))
+    # (x_re + i x_im)(cos - i sin), output axes first
+    t = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)    # [p, s, a', q, r]
+    return _f32(t.transpose(0, 1, 3, 2, 4))
+
+
 @functools.lru_cache(maxsize=None)
 def _block_tables(b: int, l_in: int, l_out: int):
     """Synthesis tables at (B, L_in) and analysis tables at (B, L_out) in the block layouts;
     the leading axes the GEMMs batch over are tiled (XLA wants batch axes on both operands)."""
     d_syn = transforms.so3_tables(b, l_in)[1]                          # [m, n, l, j]
     d_ana = transforms.so3_tables(b, l_out)[0]                         # [m, n, l, j]
-    a_syn = transforms.inverse_dft(b, l_in, True)                      # [m, s, a, r]
     g_syn = transforms.inverse_dft(b, l_in, False)                     # [n, r, g]
     g_ana = transforms.forward_dft(b, l_out, False)                    # [g, r, n]
-    a_ana = transforms.forward_dft(b, l_out, True)                     # [a, r, s, m]
     return (_tile(d_syn.transpose(0, 1, 3, 2), 2),                     # [s, m, n, j, l]
-            np.ascontiguousarray(a_syn.transpose(2, 3, 1, 0)),         # [a, r, s, m]
+            _half_dft(b, inverse=True),                                # [p, a', r, s, q]
             _tile(g_syn.transpose(2, 1, 0), 2 * b),                    # [a, g, r, n]
             _tile(g_ana.transpose(1, 2, 0), 2 * b),                    # [a, r, n, g]
-            np.ascontiguousarray(a_ana.transpose(2, 3, 0, 1)),         # [s, m, a, r]
+            _half_dft(b, inverse=False),                               # [p, s, q, a', r]
             _tile(d_ana, 2))                                           # [s, m, n, l, j]
+
+
+def _fold(y_SxMxR, b):
+    """``[s, 2L-1 (m), ...]`` -> ``[p, s, B (q), ...]``: ``c_q ± c_{q-B}`` (p = 0, 1), the
+    inputs of the half-size α DFTs; frequencies beyond ``±(L-1)`` are zero."""
+    l = (y_SxMxR.shape[1] + 1) // 2
+    pad = [(0, 0)] * y_SxMxR.ndim
+    pad[1] = (b - l, b - l)
+    y = jnp.pad(y_SxMxR, pad)                                         # m = -(B-1) .. B-1
+    hi = y[:, b - 1:]                                                  # m = q
+    pad[1] = (1, 0)
+    lo = jnp.pad(y[:, :b - 1], pad)                                    # m = q - B (0 at q = 0)
+    return jnp.stack([hi + lo, hi - lo])
+
+
+def _unfold(y_PxSxQxR, l):
+    """Inverse of the fold for analysis: ``c_m = Y_0[q] ± Y_1[q]`` (+ for m ≥ 0, - for m < 0,
+    q = m mod B) -> ``[s, 2L-1 (m), ...]``."""
+    b = y_PxSxQxR.shape[2]
+    y0, y1 = y_PxSxQxR[0], y_PxSxQxR[1]
+    return jnp.concatenate([y0[:, b - l + 1:] - y1[:, b - l + 1:], y0[:, :l] + y1[:, :l]], 1)
 
 
 def _pointwise_block(h_SxMxNxLxX, scale_X, shift_X, tables, relu):
     d_syn, a_syn, g_syn, g_ana, a_ana, d_ana = tables
+    b = a_syn.shape[1]
     y = jnp.einsum("smnjl,smnlx->smnjx", d_syn, h_SxMxNxLxX)          # β
-    y = jnp.einsum("arsm,smnjx->arnjx", a_syn, y)                      # α
+    y = jnp.einsum("parsq,psqnjx->parnjx", a_syn, _fold(y, b))         # α, grid order (p, a')
+    y = y.reshape((2 * b,) + y.shape[2:])
     grid = jnp.einsum("agrn,arnjx->agjx", g_syn, y)                    # γ: grid [α, γ, β, x]
     grid = grid * scale_X + shift_X
     if relu:
         grid = jax.nn.relu(grid)
     y = jnp.einsum("arng,agjx->arnjx", g_ana, grid)                    # γ
-    y = jnp.einsum("smar,arnjx->smnjx", a_ana, y)                      # α
+    y = jnp.einsum("psqar,parnjx->psqnjx", a_ana, y.reshape((2, b) + y.shape[1:]))   # α
+    y = _unfold(y, d_ana.shape[2])
     return jnp.einsum("smnlj,smnjx->smnlx", d_ana, y)                  # β
 
 

@@ -15,13 +15,14 @@ def _spectrum(rng, n, c, b, lmax):
     return fused.analyse(x, lmax, on_so3=True)
 
 
-@pytest.mark.parametrize("block_floats", [1, 2 * 3 * 12 ** 3, 10 ** 9])
-def test_pointwise_equals_synthesis_relu_analysis(block_floats):
+@pytest.mark.parametrize("block_floats, b, l_in", [
+    (1, 6, 6), (2 * 3 * 12 ** 3, 6, 6), (10 ** 9, 6, 6), (2 * 3 * 10 ** 3, 5, 3)])
+def test_pointwise_equals_synthesis_relu_analysis(block_floats, b, l_in):
     """Blocks of one channel, of 2 patches and of all 6; the reference runs :mod:`transforms`
-    on whole grids."""
+    on whole grids. Odd B and L_in < B exercise the radix-2 α step's folding."""
     rng = np.random.default_rng(0)
-    n, c, b, l_out = 6, 3, 6, 4
-    h = _spectrum(rng, n, c, b, b)
+    n, c, l_out = 6, 3, 4
+    h = _spectrum(rng, n, c, b, l_in)
     scale, shift = rng.normal(size=c), rng.normal(size=c)
     got = fused.pointwise(h, scale, shift, l_out, block_floats=block_floats)
     grid = fused.synthesise(h) * scale[:, None, None, None] + shift[:, None, None, None]
