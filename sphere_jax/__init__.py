@@ -37,7 +37,7 @@ def _bundle(bundle_or_path):
     return bundle_or_path
 
 
-def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0):
+def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=None):
     """Local reference frames from a Compass or SOUND bundle.
 
     Args:
@@ -46,17 +46,20 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0):
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's training radius, 0.3 m).
       chunk: patches per jitted, vmapped call (default: the bundle's ``infer_chunk``); memory
-        stays bounded for any K and the function compiles once. Chunks run concurrently, one
-        per core (:func:`sphere_jax.api.run_chunked`).
+        stays bounded for any K and the function compiles once.
+      workers: chunks run at a time (default: one per core, at most 4; see
+        :func:`sphere_jax.api.run_chunked`); memory grows with it.
       seed: seed of the patch resampling (N points drawn with replacement per support).
 
     Returns:
       ``[K, 3, 3]`` float32 rotation matrices, columns x̂, ŷ, ẑ in world coordinates.
     """
-    return _bundle(bundle).orient(points, keypoints, radius=radius, chunk=chunk, seed=seed)
+    return _bundle(bundle).orient(points, keypoints, radius=radius, chunk=chunk, seed=seed,
+                                  workers=workers)
 
 
-def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=None):
+def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
+             workers=None):
     """Rotation-invariant local descriptors from a LEAD, LEAD-PN or SOUND bundle.
 
     LEAD's SO(3) descriptor is turned to canonical pose by ``frames`` (``[K, 3, 3]``, e.g.
@@ -68,7 +71,7 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
       points: ``[N, 3]`` float cloud, metres.
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's).
-      chunk, seed: as in :func:`orient`.
+      chunk, seed, workers: as in :func:`orient`.
       frames: optional LRFs for LEAD.
 
     Returns:
@@ -77,4 +80,4 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
       :func:`sphere_jax.eval.registration.mutual_matches`).
     """
     return _bundle(bundle).describe(points, keypoints, radius=radius, chunk=chunk, seed=seed,
-                                    frames=frames)
+                                    frames=frames, workers=workers)

@@ -65,7 +65,7 @@ class Bundle:
         if self.kind not in ("compass", "sound"):
             raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
         return run_chunked(self._orient_fn, self.patches(points, keypoints, radius, seed),
-                           chunk or self.chunk, workers)
+                           self.chunk if chunk is None else chunk, workers)
 
     def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
@@ -73,7 +73,7 @@ class Bundle:
         if self.kind not in ("compass", "sound"):
             raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
         return run_chunked(self._orient_fn, np.asarray(patches_KxNx3, np.float32),
-                           chunk or self.chunk, workers)
+                           self.chunk if chunk is None else chunk, workers)
 
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
                  workers=None):
@@ -82,18 +82,18 @@ class Bundle:
         the code of the FLARE-oriented patch; SOUND: self-oriented."""
         p = self.patches(points, keypoints, radius, seed)
         if self.kind == "sound":
-            return run_chunked(self._sound_fn, p, chunk or self.chunk, workers)
+            return run_chunked(self._sound_fn, p, self.chunk if chunk is None else chunk, workers)
         if self.kind == "lead_pn":
-            return run_chunked(self._lead_pn_fn, p, chunk or self.chunk, workers)
+            return run_chunked(self._lead_pn_fn, p, self.chunk if chunk is None else chunk, workers)
         if self.kind != "lead":
             raise ValueError(f"describe needs a lead, lead_pn or sound bundle, not {self.kind!r}")
         if frames is None:
-            frames = run_chunked(FLARE_BATCH, p, chunk or self.chunk, workers)
+            frames = run_chunked(FLARE_BATCH, p, self.chunk if chunk is None else chunk, workers)
         frames = np.asarray(frames, np.float32)
         if frames.shape != (len(p), 3, 3):
             raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
         both = np.concatenate([p.reshape(len(p), -1), frames.reshape(len(p), 9)], 1)
-        return run_chunked(self._lead_fn, both, chunk or self.chunk, workers)
+        return run_chunked(self._lead_fn, both, self.chunk if chunk is None else chunk, workers)
 
     # ---- jitted pieces ----------------------------------------------------------------------
 
@@ -126,7 +126,11 @@ def run_chunked(fn, x, chunk=None, workers=None):
     core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
     Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
     """
-    chunk = max(1, int(chunk or DEFAULT_CHUNK))
+    chunk = DEFAULT_CHUNK if chunk is None else int(chunk)
+    workers = default_workers() if workers is None else int(workers)
+    if chunk < 1 or workers < 1:
+        raise ValueError(f"chunk and workers must be at least 1, got chunk={chunk}, "
+                         f"workers={workers}")
     x = np.asarray(x)
     if len(x) == 0:
         return np.zeros((0,))
@@ -139,7 +143,7 @@ def run_chunked(fn, x, chunk=None, workers=None):
         return np.asarray(fn(jnp.asarray(part)))[:chunk - pad]
 
     starts = range(0, len(x), chunk)
-    workers = min(len(starts), int(workers or default_workers()))
+    workers = min(len(starts), workers)
     if workers <= 1:
         return np.concatenate([run(i) for i in starts])
     with concurrent.futures.ThreadPoolExecutor(workers) as pool:

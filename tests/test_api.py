@@ -106,3 +106,7 @@ def test_run_chunked_order_padding_and_workers():
         assert np.array_equal(out, x * 2) and calls == [4, 4, 4]     # padded to one shape
     assert api.run_chunked(fn, x[:0], 4).shape == (0,)
     assert api.default_workers() >= 1
+    with pytest.raises(ValueError, match="workers=0"):
+        api.run_chunked(fn, x, 4, workers=0)
+    with pytest.raises(ValueError, match="chunk=0"):
+        api.run_chunked(fn, x, 0)
