@@ -13,7 +13,9 @@ on a CPU it is memory bandwidth, not arithmetic, that bounds these transforms.
 Inside a block the layouts differ from :mod:`transforms`: spectra are ``[2(re/im), 2L-1(m),
 L(n≥0), L(l), x]`` and grids ``[2B(α), 2B(γ), 2B(β), x]``, so that each step — Wigner-d in β,
 DFT in α, DFT in γ — is one GEMM (or a GEMM batched over its leading axes) with no transposes in
-between. The results equal :mod:`correlation`'s to float32 round-off (tests/test_fused.py).
+between. The α DFTs are split radix-2 (:func:`_half_dft`), which leaves the block's grid in α
+order even indices first — invisible outside, since the grid never leaves the block. The
+results equal :mod:`correlation`'s to float32 round-off (tests/test_fused.py).
 """
 from __future__ import annotations
 

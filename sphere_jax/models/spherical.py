@@ -24,10 +24,10 @@ class SphericalStack(nn.Module):
 
     At inference (``train=False``) with ``fused`` the layers are chained in the spectral domain
     (:mod:`sphere_jax.fused`): same parameters, same outputs to round-off, less memory traffic
-    (LEAD 'paper' in about half the time on a CPU, B = 24 stacks about 10 % faster). Training
-    uses the layer-by-layer path, whose batch statistics need whole grids. On that path the
-    input may also be a :class:`fused.Spectrum` of the input grids (analysed to at least
-    ``bandwidths[1]``).
+    and fewer multiplications (LEAD 'paper' describes 2.5 times faster on 2 cores). Training
+    uses the layer-by-layer path, whose batch statistics need whole grids. On the fused path
+    the input may also be a :class:`fused.Spectrum` of the input grids (analysed to at least
+    ``bandwidths[1]``), e.g. a trunk shared by two stacks.
     """
     features: Sequence[int]
     bandwidths: Sequence[int]
