@@ -10,12 +10,14 @@ whose grids stay in the CPU cache. A layer-by-layer forward pass instead writes 
 memory and reads it back several times (for 40 channels at B = 16 that is 5 MB per patch), and
 on a CPU it is memory bandwidth, not arithmetic, that bounds these transforms.
 
-Inside a block the layouts differ from :mod:`transforms`: spectra are ``[2(re/im), 2L-1(m),
-L(n≥0), L(l), x]`` and grids ``[2B(α), 2B(γ), 2B(β), x]``, so that each step — Wigner-d in β,
-DFT in α, DFT in γ — is one GEMM (or a GEMM batched over its leading axes) with no transposes in
-between. The α DFTs are split radix-2 (:func:`_half_dft`), which leaves the block's grid in α
-order even indices first — invisible outside, since the grid never leaves the block. The
-results equal :mod:`correlation`'s to float32 round-off (tests/test_fused.py).
+Inside a block the layouts differ from :mod:`transforms`: spectra are ``[h, 2(re/im),
+2L-1(m), L/2(n'), L(l), x]`` with n = 2n' + h, and grids ``[2, 2, B, B, 2B(β), x]``, so that
+each step — Wigner-d in β, DFT in α, DFT in γ — is one GEMM (or a GEMM batched over its leading
+axes) with no transposes in between. Both uniform axes are split radix 2, which halves their
+DFTs: α by the parity of its grid index (:func:`_half_dft`), γ by the parity of the frequency n
+(the two halves of the γ grid differ by (-1)^n). The grid's order is therefore permuted, which
+is invisible outside since it never leaves the block. The results equal
+:mod:`correlation`'s to float32 round-off (tests/test_fused.py).
 """
 from __future__ import annotations
 
@@ -135,10 +137,6 @@ def synthesise(h: Spectrum):
 # Blocked pointwise step
 # ----------------------------------------------------------------------------------------------
 
-def _tile(t, reps):
-    return np.ascontiguousarray(np.broadcast_to(t[None], (reps,) + t.shape))
-
-
 def _f32(t):
     return np.ascontiguousarray(t, np.float32)
 
@@ -160,57 +158,92 @@ def _half_dft(b: int, inverse: bool):
     return _f32(t.transpose(0, 1, 3, 2, 4))
 
 
+def _by_parity(t, axis: int, length: int):
+    """Zero-pad ``t``'s axis ``axis`` to ``length`` (even) and split it as n = 2n' + h into
+    ``(n', h)``, with h moved to the front."""
+    pad = [(0, 0)] * t.ndim
+    pad[axis] = (0, length - t.shape[axis])
+    t = np.pad(t, pad).reshape(t.shape[:axis] + (length // 2, 2) + t.shape[axis + 1:])
+    return np.moveaxis(t, axis + 1, 0)
+
+
+def _even(n: int) -> int:
+    return n + n % 2
+
+
 @functools.lru_cache(maxsize=None)
 def _block_tables(b: int, l_in: int, l_out: int):
-    """Synthesis tables at (B, L_in) and analysis tables at (B, L_out) in the block layouts;
-    the leading axes the GEMMs batch over are tiled (XLA wants batch axes on both operands)."""
-    d_syn = transforms.so3_tables(b, l_in)[1]                          # [m, n, l, j]
-    d_ana = transforms.so3_tables(b, l_out)[0]                         # [m, n, l, j]
-    g_syn = transforms.inverse_dft(b, l_in, False)                     # [n, r, g]
-    g_ana = transforms.forward_dft(b, l_out, False)                    # [g, r, n]
-    return (_tile(d_syn.transpose(0, 1, 3, 2), 2),                     # [s, m, n, j, l]
-            _half_dft(b, inverse=True),                                # [p, a', r, s, q]
-            _tile(g_syn.transpose(2, 1, 0), 2 * b),                    # [a, g, r, n]
-            _tile(g_ana.transpose(1, 2, 0), 2 * b),                    # [a, r, n, g]
-            _half_dft(b, inverse=False),                               # [p, s, q, a', r]
-            _tile(d_ana, 2))                                           # [s, m, n, l, j]
+    """Synthesis tables at (B, L_in) and analysis tables at (B, L_out) in the block layouts, n
+    split by parity (padded to even counts); the leading axes the GEMMs batch over are tiled
+    (XLA wants batch axes on both operands)."""
+    d_syn = _by_parity(transforms.so3_tables(b, l_in)[1], 1, _even(l_in))    # [h, m, n', l, j]
+    d_ana = _by_parity(transforms.so3_tables(b, l_out)[0], 1, _even(l_out))  # [h, m, n', l, j]
+    # γ_{g+B} = γ_g + π: on the first half of the γ grid, frequency n carries (-1)^n on the
+    # second, so each parity h of n needs only the B points g < B.
+    g_syn = _by_parity(transforms.inverse_dft(b, l_in, False)[..., :b], 0, _even(l_in))
+    g_ana = _by_parity(transforms.forward_dft(b, l_out, False)[:b], 2, _even(l_out))
+    tile = lambda t, reps: np.broadcast_to(t, reps + t.shape[len(reps):])
+    return tuple(_f32(t) for t in (
+        tile(d_syn.transpose(0, 1, 2, 4, 3)[:, None], (2, 2)),                 # [h, s, m, n', j, l]
+        tile(_half_dft(b, inverse=True)[:, None], (2, 2)),                     # [p, h, a', r, s, q]
+        tile(g_syn.transpose(0, 3, 2, 1)[None, :, None], (2, 2, b)),           # [p, h, a', g', r, n']
+        tile(g_ana.transpose(0, 2, 3, 1)[None, :, None], (2, 2, b)),           # [p, h, a', r, n', g']
+        tile(_half_dft(b, inverse=False)[:, None], (2, 2)),                    # [p, h, s, q, a', r]
+        tile(d_ana[:, None], (2, 2))))                                         # [h, s, m, n', l, j]
 
 
-def _fold(y_SxMxR, b):
-    """``[s, 2L-1 (m), ...]`` -> ``[p, s, B (q), ...]``: ``c_q ± c_{q-B}`` (p = 0, 1), the
-    inputs of the half-size α DFTs; frequencies beyond ``±(L-1)`` are zero."""
-    l = (y_SxMxR.shape[1] + 1) // 2
-    pad = [(0, 0)] * y_SxMxR.ndim
-    pad[1] = (b - l, b - l)
-    y = jnp.pad(y_SxMxR, pad)                                         # m = -(B-1) .. B-1
-    hi = y[:, b - 1:]                                                  # m = q
-    pad[1] = (1, 0)
-    lo = jnp.pad(y[:, :b - 1], pad)                                    # m = q - B (0 at q = 0)
+def _fold(y, b, axis):
+    """Frequencies ``2L-1 (m)`` on ``axis`` -> ``[p, ..., B (q), ...]``: ``c_q ± c_{q-B}``
+    (p = 0, 1), the inputs of the half-size α DFTs; frequencies beyond ``±(L-1)`` are zero."""
+    l = (y.shape[axis] + 1) // 2
+    pad = [(0, 0)] * y.ndim
+    pad[axis] = (b - l, b - l)
+    y = jnp.pad(y, pad)                                                # m = -(B-1) .. B-1
+    hi = jax.lax.slice_in_dim(y, b - 1, 2 * b - 1, axis=axis)          # m = q
+    pad[axis] = (1, 0)
+    lo = jnp.pad(jax.lax.slice_in_dim(y, 0, b - 1, axis=axis), pad)    # m = q - B (0 at q = 0)
     return jnp.stack([hi + lo, hi - lo])
 
 
-def _unfold(y_PxSxQxR, l):
-    """Inverse of the fold for analysis: ``c_m = Y_0[q] ± Y_1[q]`` (+ for m ≥ 0, - for m < 0,
-    q = m mod B) -> ``[s, 2L-1 (m), ...]``."""
-    b = y_PxSxQxR.shape[2]
-    y0, y1 = y_PxSxQxR[0], y_PxSxQxR[1]
-    return jnp.concatenate([y0[:, b - l + 1:] - y1[:, b - l + 1:], y0[:, :l] + y1[:, :l]], 1)
+def _unfold(y, l, axis):
+    """Inverse of the fold for analysis, ``[p, ..., B (q), ...]`` -> ``c_m = Y_0[q] ± Y_1[q]``
+    (+ for m ≥ 0, - for m < 0, q = m mod B) as ``[..., 2L-1 (m), ...]`` (``axis`` counts
+    without p)."""
+    b = y.shape[axis + 1]
+    y0, y1 = y[0], y[1]
+    neg = lambda t: jax.lax.slice_in_dim(t, b - l + 1, b, axis=axis)
+    pos = lambda t: jax.lax.slice_in_dim(t, 0, l, axis=axis)
+    return jnp.concatenate([neg(y0) - neg(y1), pos(y0) + pos(y1)], axis)
 
 
-def _pointwise_block(h_SxMxNxLxX, scale_X, shift_X, tables, relu):
+def _bmm(lhs, rhs, batch: int, contract: int):
+    """Batched GEMM ``[*batch, *m, *k] @ [*batch, *k, *n] -> [*batch, *m, *n]`` over the
+    leading ``batch`` axes and the ``contract`` axes between. jnp.einsum may list several
+    contracting axes in an order that is not the memory order, and XLA then transposes the
+    grid-sized operand first; naming them in order keeps every step a plain GEMM."""
+    b_dims = tuple(range(batch))
+    k_lhs = tuple(range(lhs.ndim - contract, lhs.ndim))
+    k_rhs = tuple(range(batch, batch + contract))
+    return jax.lax.dot_general(lhs, rhs, ((k_lhs, k_rhs), (b_dims, b_dims)))
+
+
+def _pointwise_block(h_HxSxMxNxLxX, scale_X, shift_X, tables, relu):
+    """One block, n split by parity h (n = 2n' + h). The grid inside is ``[p, t, a', g', j, x]``:
+    α index 2a' + p, γ index g' + tB, β index j."""
     d_syn, a_syn, g_syn, g_ana, a_ana, d_ana = tables
-    b = a_syn.shape[1]
-    y = jnp.einsum("smnjl,smnlx->smnjx", d_syn, h_SxMxNxLxX)          # β
-    y = jnp.einsum("parsq,psqnjx->parnjx", a_syn, _fold(y, b))         # α, grid order (p, a')
-    y = y.reshape((2 * b,) + y.shape[2:])
-    grid = jnp.einsum("agrn,arnjx->agjx", g_syn, y)                    # γ: grid [α, γ, β, x]
+    b = a_syn.shape[2]
+    y = _bmm(d_syn, h_HxSxMxNxLxX, 4, 1)                              # β
+    y = _bmm(a_syn, _fold(y, b, 2), 2, 2)                              # α
+    z = _bmm(g_syn, y, 3, 2)                                           # γ of each parity
+    grid = jnp.stack([z[:, 0] + z[:, 1], z[:, 0] - z[:, 1]], 1)        # γ halves t = 0, 1
     grid = grid * scale_X + shift_X
     if relu:
         grid = jax.nn.relu(grid)
-    y = jnp.einsum("arng,agjx->arnjx", g_ana, grid)                    # γ
-    y = jnp.einsum("psqar,parnjx->psqnjx", a_ana, y.reshape((2, b) + y.shape[1:]))   # α
-    y = _unfold(y, d_ana.shape[2])
-    return jnp.einsum("smnlj,smnjx->smnlx", d_ana, y)                  # β
+    z = jnp.stack([grid[:, 0] + grid[:, 1], grid[:, 0] - grid[:, 1]], 1)
+    y = _bmm(g_ana, z, 3, 1)                                           # γ
+    y = _bmm(a_ana, y, 2, 2)                                           # α
+    y = _unfold(y, (d_ana.shape[2] + 1) // 2, 2)                       # [h, s, m, n', j, x]
+    return _bmm(d_ana, y, 4, 1)                                        # β
 
 
 def _signals_per_block(n_patches, channels, b, block_floats):
@@ -242,10 +275,14 @@ def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
     # put blocks first would cost two extra passes over memory.
     def body(i, out):
         start = i * size
-        hb = jnp.transpose(h.block(start, size), (3, 0, 1, 2, 4))       # [s, m, n, l, x]
-        fb = _pointwise_block(hb, jax.lax.dynamic_slice_in_dim(scale, start, size),
+        hb = h.block(start, size)                                      # [m, n, l, s, x]
+        hb = jnp.pad(hb, ((0, 0), (0, _even(l_in) - l_in)) + ((0, 0),) * 3)
+        hb = hb.reshape(hb.shape[:1] + (-1, 2) + hb.shape[2:])
+        fb = _pointwise_block(jnp.transpose(hb, (2, 4, 0, 1, 3, 5)),  # [h, s, m, n', l, x]
+                              jax.lax.dynamic_slice_in_dim(scale, start, size),
                               jax.lax.dynamic_slice_in_dim(shift, start, size), tables, relu)
-        return jax.lax.dynamic_update_slice_in_dim(out, jnp.transpose(fb, (1, 2, 3, 0, 4)),
-                                                   start, axis=4)
+        fb = jnp.transpose(fb, (2, 3, 0, 4, 1, 5))                     # [m, n', h, l, s, x]
+        fb = fb.reshape(fb.shape[:1] + (-1,) + fb.shape[3:])[:, :lmax_out]
+        return jax.lax.dynamic_update_slice_in_dim(out, fb, start, axis=4)
 
     return Spectrum(jax.lax.fori_loop(0, n * c // size, body, out), c, b, True)
