@@ -8,7 +8,8 @@ Models suite (``--suite=models [--sizes=cpu,paper]``): forward and training-step
 config at its configured batch, and LEAD/SOUND description time per keypoint for 5000 keypoints
 of the 3DMatch kitchen fragment (when ``../shared/data`` is present), with the fused inference
 path of :mod:`sphere_jax.fused` (the default) and layer by layer (``unfused``), with
-``describe_workers`` chunks of 256 keypoints run at a time (:func:`sphere_jax.api.run_chunked`).
+``describe_workers`` chunks of the config's ``infer_chunk`` keypoints run at a time
+(:func:`sphere_jax.api.run_chunked`). ``--only=lead`` keeps the configs whose name contains it.
 
 Registration suite (``--suite=registration``): one 3DMatch pair (kitchen 0–5 from
 ``../shared/data``, else the first synthetic pair) with 5000 keypoints per fragment, evaluated
@@ -148,7 +149,7 @@ def run_patches(repeats=5):
              "signals_512_B24_ms": round(sig_ms, 1)}]
 
 
-def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
+def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None):
     """Forward and training-step time per config and size; description ms per keypoint."""
     import importlib
     import optax
@@ -158,6 +159,8 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000):
     shared = shared_data("3dmatch", "7-scenes-redkitchen", "cloud_bin_0.ply")
     cloud = io.read_ply(shared).points if os.path.isfile(shared) else None
     for name in ("compass", "lead", "lead_pn", "sound"):
+        if only and only not in name:
+            continue
         for size in sizes:
             config = importlib.import_module(f"configs.{name}").get_config(size)
             model = training.build_model(config)
@@ -255,14 +258,17 @@ def main(argv=None):
     parser.add_argument("--json", action="store_true", help="print one JSON list of records")
     parser.add_argument("--batch", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--only", default=None, help="run the layers whose name contains this")
+    parser.add_argument("--only", default=None,
+                        help="layers/models suites: keep the layers or configs whose name "
+                        "contains this")
     args = parser.parse_args(argv)
     if args.suite == "patches":
         records = run_patches(args.repeats)
     elif args.suite == "registration":
         records = run_registration(args.keypoints)
     elif args.suite == "models":
-        records = run_models(tuple(args.sizes.split(",")), min(args.repeats, 3), args.keypoints)
+        records = run_models(tuple(args.sizes.split(",")), min(args.repeats, 3), args.keypoints,
+                             args.only)
     else:
         records = run_layers(args.batch, args.repeats, args.only)
     if args.json:
