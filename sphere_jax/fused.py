@@ -80,10 +80,12 @@ class S2Product(typing.NamedTuple):
         channels) or some channels of one patch (``size`` divides the channels)."""
         c, c_in = self.channels, self.f.channels
         if size % c == 0:
-            f, kernel, count = self.f.block(start // c * c_in, size // c * c_in), self.kernel, size // c
+            count, kernel = size // c, self.kernel
+            f = self.f.block(start // c * c_in, count * c_in)
         else:
             f, count = self.f.block(start // c * c_in, c_in), 1
-            kernel = jax.lax.dynamic_slice_in_dim(self.kernel, start % c, size, self.kernel.ndim - 1)
+            kernel = jax.lax.dynamic_slice_in_dim(self.kernel, start % c, size,
+                                                  self.kernel.ndim - 1)
         h = correlation.s2_spectral_product(f.reshape(f.shape[:-1] + (count, c_in)), kernel)
         return h.reshape(h.shape[:-2] + (-1,))
 
@@ -178,18 +180,18 @@ def _block_tables(b: int, l_in: int, l_out: int):
     (XLA wants batch axes on both operands)."""
     d_syn = _by_parity(transforms.so3_tables(b, l_in)[1], 1, _even(l_in))    # [h, m, n', l, j]
     d_ana = _by_parity(transforms.so3_tables(b, l_out)[0], 1, _even(l_out))  # [h, m, n', l, j]
-    # γ_{g+B} = γ_g + π: on the first half of the γ grid, frequency n carries (-1)^n on the
-    # second, so each parity h of n needs only the B points g < B.
+    # γ_{g+B} = γ_g + π, so frequency n takes the factor (-1)^n on the γ grid's second half:
+    # each parity h of n needs only the B points g < B.
     g_syn = _by_parity(transforms.inverse_dft(b, l_in, False)[..., :b], 0, _even(l_in))
     g_ana = _by_parity(transforms.forward_dft(b, l_out, False)[:b], 2, _even(l_out))
     tile = lambda t, reps: np.broadcast_to(t, reps + t.shape[len(reps):])
     return tuple(_f32(t) for t in (
-        tile(d_syn.transpose(0, 1, 2, 4, 3)[:, None], (2, 2)),                 # [h, s, m, n', j, l]
-        tile(_half_dft(b, inverse=True)[:, None], (2, 2)),                     # [p, h, a', r, s, q]
-        tile(g_syn.transpose(0, 3, 2, 1)[None, :, None], (2, 2, b)),           # [p, h, a', g', r, n']
-        tile(g_ana.transpose(0, 2, 3, 1)[None, :, None], (2, 2, b)),           # [p, h, a', r, n', g']
-        tile(_half_dft(b, inverse=False)[:, None], (2, 2)),                    # [p, h, s, q, a', r]
-        tile(d_ana[:, None], (2, 2))))                                         # [h, s, m, n', l, j]
+        tile(d_syn.transpose(0, 1, 2, 4, 3)[:, None], (2, 2)),         # [h, s, m, n', j, l]
+        tile(_half_dft(b, inverse=True)[:, None], (2, 2)),             # [p, h, a', r, s, q]
+        tile(g_syn.transpose(0, 3, 2, 1)[None, :, None], (2, 2, b)),   # [p, h, a', g', r, n']
+        tile(g_ana.transpose(0, 2, 3, 1)[None, :, None], (2, 2, b)),   # [p, h, a', r, n', g']
+        tile(_half_dft(b, inverse=False)[:, None], (2, 2)),            # [p, h, s, q, a', r]
+        tile(d_ana[:, None], (2, 2))))                                 # [h, s, m, n', l, j]
 
 
 def _fold(y, b, axis):
