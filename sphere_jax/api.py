@@ -58,22 +58,25 @@ class Bundle:
         return extract_unit_patches(points, keypoints, float(radius or self.config.data.radius),
                                     self.config.data.n_points, seed)
 
+    def _run(self, fn, x, chunk, workers):
+        """:func:`run_chunked` with the bundle's chunk when the caller gives none."""
+        return run_chunked(fn, x, self.chunk if chunk is None else chunk, workers)
+
     # ---- LRFs and descriptors ---------------------------------------------------------------
 
     def orient(self, points, keypoints, radius=None, chunk=None, seed=0, workers=None):
         """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles)."""
         if self.kind not in ("compass", "sound"):
             raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
-        return run_chunked(self._orient_fn, self.patches(points, keypoints, radius, seed),
-                           self.chunk if chunk is None else chunk, workers)
+        return self._run(self._orient_fn, self.patches(points, keypoints, radius, seed), chunk,
+                         workers)
 
     def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
         :func:`sphere_jax.data.pipeline.unit_shapes`)."""
         if self.kind not in ("compass", "sound"):
             raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
-        return run_chunked(self._orient_fn, np.asarray(patches_KxNx3, np.float32),
-                           self.chunk if chunk is None else chunk, workers)
+        return self._run(self._orient_fn, np.asarray(patches_KxNx3, np.float32), chunk, workers)
 
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
                  workers=None):
@@ -82,18 +85,18 @@ class Bundle:
         the code of the FLARE-oriented patch; SOUND: self-oriented."""
         p = self.patches(points, keypoints, radius, seed)
         if self.kind == "sound":
-            return run_chunked(self._sound_fn, p, self.chunk if chunk is None else chunk, workers)
+            return self._run(self._sound_fn, p, chunk, workers)
         if self.kind == "lead_pn":
-            return run_chunked(self._lead_pn_fn, p, self.chunk if chunk is None else chunk, workers)
+            return self._run(self._lead_pn_fn, p, chunk, workers)
         if self.kind != "lead":
             raise ValueError(f"describe needs a lead, lead_pn or sound bundle, not {self.kind!r}")
         if frames is None:
-            frames = run_chunked(FLARE_BATCH, p, self.chunk if chunk is None else chunk, workers)
+            frames = self._run(FLARE_BATCH, p, chunk, workers)
         frames = np.asarray(frames, np.float32)
         if frames.shape != (len(p), 3, 3):
             raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
         both = np.concatenate([p.reshape(len(p), -1), frames.reshape(len(p), 9)], 1)
-        return run_chunked(self._lead_fn, both, self.chunk if chunk is None else chunk, workers)
+        return self._run(self._lead_fn, both, chunk, workers)
 
     # ---- jitted pieces ----------------------------------------------------------------------
 
