@@ -5,6 +5,11 @@ import ml_collections
 
 SIZES = ("paper", "cpu", "tiny")
 
+# Inference chunk of the B = 24 'paper' Compass and SOUND: their SO(3) spectra take ~40 MB per
+# patch (SOUND at chunk 256 peaked at 10 GB), so two chunks of 64 in flight stay well inside
+# 24 GB.
+B24_INFER_CHUNK = 64
+
 
 def check_size(arg):
     size = arg or "paper"

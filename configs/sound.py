@@ -25,8 +25,6 @@ def get_config(arg=None):
                      descriptor_features=(4, 1), lrf_bandwidths=(4, 4, 4), lrf_features=(2, 1)),
     }[size]
     if size == "paper":
-        # Its B = 24 SO(3) spectra take ~40 MB per patch at inference (chunk 256 of SOUND
-        # peaked at 10 GB): two chunks of 64 in flight stay well inside 24 GB.
-        c.infer_chunk = 64
+        c.infer_chunk = common.B24_INFER_CHUNK
     c.model_kwargs.update(common.decoder_kwargs(size))
     return c
