@@ -139,25 +139,21 @@ def synthesise(h: Spectrum):
 # Blocked pointwise step
 # ----------------------------------------------------------------------------------------------
 
-def _f32(t):
-    return np.ascontiguousarray(t, np.float32)
-
-
 def _half_dft(b: int, inverse: bool):
     """The α DFT split by the parity p of the grid index a = 2a' + p (radix 2): frequencies m
     and m - B differ on sub-grid p by the factor (-1)^p, so each sub-grid needs only the B
     folded frequencies q = m mod B — half the multiplications of the full DFT.
 
     ``inverse``: ``e^{iqα}``, ``[p, a', r(re/im out), s(re/im in), q]``; else ``e^{-iqα}``,
-    ``[p, s(out), q, a', r(in)]``."""
+    ``[p, s(out), q, a', r(in)]``; float64."""
     alpha = so3.grid_alpha(b).reshape(b, 2).T                          # [p, a']: a = 2a' + p
     angle = alpha[:, :, None] * np.arange(b)                           # [p, a', q]
     c, s = np.cos(angle), np.sin(angle)
     if inverse:    # (x_re + i x_im)(cos + i sin)
-        return _f32(np.stack([np.stack([c, -s], 2), np.stack([s, c], 2)], 2))
+        return np.stack([np.stack([c, -s], 2), np.stack([s, c], 2)], 2)
     # (x_re + i x_im)(cos - i sin), output axes first
     t = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)    # [p, s, a', q, r]
-    return _f32(t.transpose(0, 1, 3, 2, 4))
+    return t.transpose(0, 1, 3, 2, 4)
 
 
 def _by_parity(t, axis: int, length: int):
@@ -185,13 +181,18 @@ def _block_tables(b: int, l_in: int, l_out: int):
     g_syn = _by_parity(transforms.inverse_dft(b, l_in, False)[..., :b], 0, _even(l_in))
     g_ana = _by_parity(transforms.forward_dft(b, l_out, False)[:b], 2, _even(l_out))
     tile = lambda t, reps: np.broadcast_to(t, reps + t.shape[len(reps):])
-    return tuple(_f32(t) for t in (
+    return tuple(transforms.table_f32(t) for t in (
         tile(d_syn.transpose(0, 1, 2, 4, 3)[:, None], (2, 2)),         # [h, s, m, n', j, l]
         tile(_half_dft(b, inverse=True)[:, None], (2, 2)),             # [p, h, a', r, s, q]
         tile(g_syn.transpose(0, 3, 2, 1)[None, :, None], (2, 2, b)),   # [p, h, a', g', r, n']
         tile(g_ana.transpose(0, 2, 3, 1)[None, :, None], (2, 2, b)),   # [p, h, a', r, n', g']
         tile(_half_dft(b, inverse=False)[:, None], (2, 2)),            # [p, h, s, q, a', r]
         tile(d_ana[:, None], (2, 2))))                                 # [h, s, m, n', l, j]
+
+
+def _sum_diff(a, b, axis: int):
+    """``[a + b, a - b]`` stacked on ``axis``: the radix-2 butterfly of both splits."""
+    return jnp.stack([a + b, a - b], axis)
 
 
 def _fold(y, b, axis):
@@ -204,7 +205,7 @@ def _fold(y, b, axis):
     hi = jax.lax.slice_in_dim(y, b - 1, 2 * b - 1, axis=axis)          # m = q
     pad[axis] = (1, 0)
     lo = jnp.pad(jax.lax.slice_in_dim(y, 0, b - 1, axis=axis), pad)    # m = q - B (0 at q = 0)
-    return jnp.stack([hi + lo, hi - lo])
+    return _sum_diff(hi, lo, 0)
 
 
 def _unfold(y, l, axis):
@@ -237,11 +238,11 @@ def _pointwise_block(h_HxSxMxNxLxX, scale_X, shift_X, tables, relu):
     y = _bmm(d_syn, h_HxSxMxNxLxX, 4, 1)                              # β
     y = _bmm(a_syn, _fold(y, b, 2), 2, 2)                              # α
     z = _bmm(g_syn, y, 3, 2)                                           # γ of each parity
-    grid = jnp.stack([z[:, 0] + z[:, 1], z[:, 0] - z[:, 1]], 1)        # γ halves t = 0, 1
+    grid = _sum_diff(z[:, 0], z[:, 1], 1)                              # γ halves t = 0, 1
     grid = grid * scale_X + shift_X
     if relu:
         grid = jax.nn.relu(grid)
-    z = jnp.stack([grid[:, 0] + grid[:, 1], grid[:, 0] - grid[:, 1]], 1)
+    z = _sum_diff(grid[:, 0], grid[:, 1], 1)                           # parities h = 0, 1
     y = _bmm(g_ana, z, 3, 1)                                           # γ
     y = _bmm(a_ana, y, 2, 2)                                           # α
     y = _unfold(y, (d_ana.shape[2] + 1) // 2, 2)                       # [h, s, m, n', j, x]

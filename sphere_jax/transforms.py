@@ -86,7 +86,8 @@ def _trig(freqs, b):
     return np.cos(angle), np.sin(angle)
 
 
-def _f32(t):
+def table_f32(t):
+    """A float64 table as contiguous float32 (tables are built in float64, used in float32)."""
     return np.ascontiguousarray(t).astype(np.float32)
 
 
@@ -97,10 +98,10 @@ def forward_dft(b: int, n_freq: int, full: bool):
     ``[2B(a), 2(r), 2(re/im out), 2n-1]``."""
     if not full:
         c, s = _trig(np.arange(n_freq), b)
-        return _f32(np.stack([c, -s], 1))
+        return table_f32(np.stack([c, -s], 1))
     c, s = _trig(np.arange(-(n_freq - 1), n_freq), b)
     # (x_re + i x_im)(cos - i sin) = (x_re cos + x_im sin) + i(x_im cos - x_re sin)
-    return _f32(np.stack([np.stack([c, -s], 1), np.stack([s, c], 1)], 1))
+    return table_f32(np.stack([np.stack([c, -s], 1), np.stack([s, c], 1)], 1))
 
 
 @functools.lru_cache(maxsize=None)
@@ -111,10 +112,10 @@ def inverse_dft(b: int, n_freq: int, full: bool):
     if not full:
         c, s = _trig(np.arange(n_freq), b)
         w = np.where(np.arange(n_freq) == 0, 1.0, 2.0)
-        return _f32(np.stack([c.T * w[:, None], -s.T * w[:, None]], 1))
+        return table_f32(np.stack([c.T * w[:, None], -s.T * w[:, None]], 1))
     c, s = _trig(np.arange(-(n_freq - 1), n_freq), b)
     # (x_re + i x_im)(cos + i sin) = (x_re cos - x_im sin) + i(x_re sin + x_im cos)
-    return _f32(np.stack([np.stack([c.T, s.T], -1), np.stack([-s.T, c.T], -1)], 1))
+    return table_f32(np.stack([np.stack([c.T, s.T], -1), np.stack([-s.T, c.T], -1)], 1))
 
 
 @functools.lru_cache(maxsize=None)
@@ -124,7 +125,7 @@ def s2_tables(b: int, lmax: int):
     d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[..., lmax - 1:, lmax - 1]  # [j, l, m≥0]
     synth = d * np.sqrt((2 * np.arange(lmax) + 1) / (4 * np.pi))[None, :, None]
     analysis = synth * (so3.quadrature_weights(b) * (2 * np.pi / (2 * b)))[:, None, None]
-    return _f32(analysis.transpose(2, 1, 0)), _f32(synth.transpose(2, 1, 0))
+    return table_f32(analysis.transpose(2, 1, 0)), table_f32(synth.transpose(2, 1, 0))
 
 
 @functools.lru_cache(maxsize=None)
@@ -133,7 +134,7 @@ def so3_tables(b: int, lmax: int):
     d = wigner.wigner_d_dense(lmax, so3.grid_beta(b))[..., lmax - 1:]          # [j, l, m, n≥0]
     scale = (2 * np.arange(lmax) + 1) / (8 * np.pi ** 2) * (2 * np.pi / (2 * b)) ** 2
     analysis = d * scale[None, :, None, None] * so3.quadrature_weights(b)[:, None, None, None]
-    return _f32(analysis.transpose(2, 3, 1, 0)), _f32(d.transpose(2, 3, 1, 0))
+    return table_f32(analysis.transpose(2, 3, 1, 0)), table_f32(d.transpose(2, 3, 1, 0))
 
 
 # ----------------------------------------------------------------------------------------------
