@@ -157,7 +157,10 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None):
     from sphere_jax.data import io, patches
     records = []
     shared = shared_data("3dmatch", "7-scenes-redkitchen", "cloud_bin_0.ply")
-    cloud = io.read_ply(shared).points if os.path.isfile(shared) else None
+    down = kp = None
+    if os.path.isfile(shared):
+        down = patches.voxel_downsample(io.read_ply(shared).points, 0.02)
+        kp = patches.random_keypoints(down, keypoints, np.random.default_rng(0))
     for name in ("compass", "lead", "lead_pn", "sound"):
         if only and only not in name:
             continue
@@ -181,9 +184,7 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None):
             rec = {"config": f"{name}:{size}", "batch": bs, "fwd_ms": round(fwd_ms, 1),
                    "train_step_ms": round(step_ms, 1), "describe_ms_per_kp": "",
                    "unfused_ms_per_kp": "", "describe_workers": ""}
-            if name in ("lead", "sound") and cloud is not None:
-                down = patches.voxel_downsample(cloud, 0.02)
-                kp = patches.random_keypoints(down, keypoints, np.random.default_rng(0))
+            if name in ("lead", "sound") and down is not None:
                 for key, fused in (("describe_ms_per_kp", True), ("unfused_ms_per_kp", False)):
                     bundle = api.Bundle(model.clone(fused=fused), variables, config)
                     bundle.describe(down, kp[:256], radius=0.3)          # compile
