@@ -7,7 +7,7 @@ fragment — timing keypoint selection and patch extraction, then the spherical 
 Models suite (``--suite=models [--sizes=cpu,paper]``): forward and training-step time of every
 config at its configured batch, and LEAD/SOUND description time per keypoint for 5000 keypoints
 of the 3DMatch kitchen fragment (when ``../shared/data`` is present), with the fused inference
-path of :mod:`sphere_jax.fused` (the default) and layer by layer (``unfused``), with
+path of :mod:`sphere_jax.spherical.fused` (the default) and layer by layer (``unfused``), with
 ``describe_workers`` chunks of the config's ``infer_chunk`` keypoints run at a time
 (:func:`sphere_jax.api.run_chunked`). ``--only=lead`` keeps the configs whose name contains it.
 
@@ -35,9 +35,9 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import correlation, layers, transforms
+from sphere_jax.spherical import correlation, layers, transforms
 
-# (kind, c_in, c_out, b_in, b_out): Compass, LEAD and SOUND layers (DESIGN.md §3).
+# (kind, c_in, c_out, b_in, b_out): Compass, LEAD and SOUND layers (CONVENTIONS.md §7).
 LAYERS = [
     ("S2Conv", 4, 40, 24, 24), ("S2Conv", 4, 40, 24, 16),
     ("SO3Conv", 40, 20, 24, 24), ("SO3Conv", 20, 10, 24, 24),
@@ -121,7 +121,7 @@ def run_layers(batch=8, repeats=5, only=None):
 
 
 def run_patches(repeats=5):
-    from sphere_jax import signal
+    from sphere_jax.spherical import signal
     from sphere_jax.data import io, patches, synthetic
     shared = shared_data("3dmatch", "demo_fullres", "cloud_bin_0.ply")
     if os.path.isfile(shared):
@@ -166,7 +166,7 @@ def run_models(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None):
             continue
         for size in sizes:
             config = importlib.import_module(f"configs.{name}").get_config(size)
-            model = training.build_model(config)
+            model = models.build(config)
             tx = optax.adam(config.train.learning_rate)
             bs, n = config.train.batch_size, config.data.n_points
             rng = np.random.default_rng(0)

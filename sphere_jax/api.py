@@ -14,28 +14,28 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import functools
-import json
 import os
 
 import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
-import orbax.checkpoint as ocp
 from sklearn.neighbors import KDTree
 
-from sphere_jax import lrf
+from sphere_jax import bundle as bundle_files
+from sphere_jax import models
 from sphere_jax.data import patches as patch_lib
-from sphere_jax.models.lead import canonical_descriptors
+from sphere_jax.data import pipeline
+from sphere_jax.models import flare
 
-
-FLARE_BATCH = jax.jit(jax.vmap(lrf.flare))
+FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
 DEFAULT_CHUNK = 256         # patches per call when neither the caller nor the bundle says
 
 
 @dataclasses.dataclass
 class Bundle:
-    """A trained model: flax module, variables and the config it was trained with."""
+    """A trained model: flax module, variables and the config it was trained with. What it can
+    do (orient, describe) is its kind's :class:`~sphere_jax.models.spec.ModelSpec`."""
     model: object
     variables: dict
     config: ml_collections.ConfigDict
@@ -43,6 +43,10 @@ class Bundle:
     @property
     def kind(self):
         return self.config.model
+
+    @property
+    def spec(self):
+        return models.spec(self.kind)
 
     @property
     def chunk(self) -> int:
@@ -64,18 +68,22 @@ class Bundle:
 
     # ---- LRFs and descriptors ---------------------------------------------------------------
 
+    def _can(self, what):
+        if getattr(self.spec, what) is None:
+            able = [k for k, s in models.SPECS.items() if getattr(s, what) is not None]
+            raise ValueError(f"{what} needs a bundle of kind {', '.join(able)}; this one is "
+                             f"{self.kind!r}")
+
     def orient(self, points, keypoints, radius=None, chunk=None, seed=0, workers=None):
         """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles)."""
-        if self.kind not in ("compass", "sound"):
-            raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
+        self._can("orient")
         return self._run(self._orient_fn, self.patches(points, keypoints, radius, seed), chunk,
                          workers)
 
     def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
         :func:`sphere_jax.data.pipeline.unit_shapes`)."""
-        if self.kind not in ("compass", "sound"):
-            raise ValueError(f"orient needs a compass or sound bundle, this is {self.kind!r}")
+        self._can("orient")
         return self._run(self._orient_fn, np.asarray(patches_KxNx3, np.float32), chunk, workers)
 
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
@@ -83,40 +91,33 @@ class Bundle:
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
         ``frames`` (``[K, 3, 3]``, e.g. from a Compass bundle) or, by default, FLARE; LEAD-PN:
         the code of the FLARE-oriented patch; SOUND: self-oriented."""
+        self._can("describe")
         p = self.patches(points, keypoints, radius, seed)
-        if self.kind == "sound":
-            return self._run(self._sound_fn, p, chunk, workers)
-        if self.kind == "lead_pn":
-            return self._run(self._lead_pn_fn, p, chunk, workers)
-        if self.kind != "lead":
-            raise ValueError(f"describe needs a lead, lead_pn or sound bundle, not {self.kind!r}")
+        if not self.spec.describe_frames:
+            return self._run(self._describe_fn, p, chunk, workers)
         if frames is None:
             frames = self._run(FLARE_BATCH, p, chunk, workers)
         frames = np.asarray(frames, np.float32)
         if frames.shape != (len(p), 3, 3):
             raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
+        # Patches and frames travel as one array so that one run_chunked call splits both.
         both = np.concatenate([p.reshape(len(p), -1), frames.reshape(len(p), 9)], 1)
-        return self._run(self._lead_fn, both, chunk, workers)
+        return self._run(self._describe_fn, both, chunk, workers)
 
     # ---- jitted pieces ----------------------------------------------------------------------
 
     def __post_init__(self):
-        apply = lambda x, **kw: self.model.apply(self.variables, x, train=False, **kw)
-        n = self.config.data.n_points
-
-        def lead(x):
-            pts, frames = x[:, :n * 3].reshape(-1, n, 3), x[:, n * 3:].reshape(-1, 3, 3)
-            maps = self.model.apply(self.variables, pts, method="encode")
-            return canonical_descriptors(maps, frames)
-
-        def sound(x):
-            return self.model.apply(self.variables, x, method="describe")
-
-        def lead_pn(x):
-            return apply(lrf.flare_orient(x))[0]
-
-        self._orient_fn = jax.jit(lambda x: apply(x)[0])
-        self._lead_fn, self._sound_fn, self._lead_pn_fn = map(jax.jit, (lead, sound, lead_pn))
+        spec, n = self.spec, self.config.data.n_points
+        if spec.orient is not None:
+            self._orient_fn = jax.jit(lambda x: spec.orient(self.model, self.variables, x))
+        if spec.describe is not None and spec.describe_frames:
+            def describe(x):
+                pts, frames = x[:, :n * 3].reshape(-1, n, 3), x[:, n * 3:].reshape(-1, 3, 3)
+                return spec.describe(self.model, self.variables, pts, frames)
+            self._describe_fn = jax.jit(describe)
+        elif spec.describe is not None:
+            self._describe_fn = jax.jit(lambda x: spec.describe(self.model, self.variables, x,
+                                                                None))
 
 
 def run_chunked(fn, x, chunk=None, workers=None):
@@ -125,7 +126,7 @@ def run_chunked(fn, x, chunk=None, workers=None):
     :func:`default_workers`).
 
     Concurrent chunks are what uses a multi-core CPU here: XLA runs the loops of the fused
-    inference path (:mod:`sphere_jax.fused`) on one thread, so one chunk at a time keeps one
+    inference path (:mod:`sphere_jax.spherical.fused`) on one thread, so one chunk at a time keeps one
     core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
     Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
     """
@@ -178,28 +179,30 @@ def extract_unit_patches(points, keypoints, radius, n_points, seed=0):
 
 
 def load_bundle(path) -> Bundle:
-    """Load ``bundle/`` written at the end of training (``variables/`` + ``config.json``)."""
-    from sphere_jax import training
-    path = os.path.abspath(str(path))
-    cfg_file = os.path.join(path, "config.json")
-    if not os.path.isfile(cfg_file):
-        raise FileNotFoundError(f"{path} is not a bundle (no config.json)")
-    with open(cfg_file) as f:
-        config = ml_collections.ConfigDict(json.load(f))
-    model = training.build_model(config)
-    with ocp.StandardCheckpointer() as ckpt:
-        variables = ckpt.restore(os.path.join(path, "variables"))
-    return Bundle(model, variables, config)
+    """Load a bundle folder written at the end of training (:mod:`sphere_jax.bundle`)."""
+    config = bundle_files.read_config(path)
+    return Bundle(models.build(config), bundle_files.read_variables(path), config)
 
 
 def cached_bundle(path) -> Bundle:
     """:func:`load_bundle`, once per bundle folder and process (the models compile once);
     a folder rewritten since (a new ``config.json``) is loaded again."""
     path = os.path.abspath(str(path))
-    cfg = os.path.join(path, "config.json")
-    return _cached_bundle(path, os.stat(cfg).st_mtime_ns if os.path.isfile(cfg) else None)
+    return _cached_bundle(path, bundle_files.stamp(path))
 
 
 @functools.lru_cache(maxsize=16)
 def _cached_bundle(path, _stamp):
     return load_bundle(path)
+
+
+def orient_shapes(bundle, shapes_BxNx3):
+    """Shapes turned into the canonical frame a Compass bundle (trained on whole shapes)
+    gives them: ``(p − centre) @ F``, in the shapes' own units."""
+    shapes_BxNx3 = np.asarray(shapes_BxNx3, np.float32)
+    n = bundle.config.data.n_points
+    rng = np.random.default_rng(0)
+    pick = rng.integers(0, shapes_BxNx3.shape[1], n)            # the network's point count
+    unit, centres = pipeline.unit_shapes(shapes_BxNx3)
+    frames = np.asarray(bundle.orient_patches(unit[:, pick], chunk=min(len(unit), 256)))
+    return np.einsum("bnk,bkj->bnj", shapes_BxNx3 - centres, frames).astype(np.float32)

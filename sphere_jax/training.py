@@ -21,61 +21,26 @@ import optax
 import orbax.checkpoint as ocp
 from tqdm import tqdm
 
-from sphere_jax import losses, lrf, models
+from sphere_jax import api, bundle, models
 from sphere_jax.data import pipeline, synthetic
 
-PATCH_MODELS = ("compass", "lead", "lead_pn", "sound")
-
 
 # ----------------------------------------------------------------------------------------------
-# Models and losses
+# Loss
 # ----------------------------------------------------------------------------------------------
-
-def build_model(config):
-    kw = dict(config.model_kwargs)
-    if config.model == "compass":
-        return models.Compass(**kw)
-    if config.model == "lead":
-        return models.Lead(**kw)
-    if config.model == "lead_pn":
-        return models.LeadPN(**kw)
-    if config.model == "sound":
-        return models.Sound(**kw)
-    if config.model == "classify":
-        return models.PointNetClassifier(n_classes=config.n_classes, **kw)
-    raise ValueError(f"unknown model {config.model!r}")
-
 
 def loss_fn(config, model, variables, batch, rng, train=True):
-    """``(loss, (metrics, new batch_stats))`` for one batch."""
-    def apply(x, **kw):
-        out = model.apply(variables, x, train=train, mutable=["batch_stats"] if train else False,
-                          **kw)
-        return out if train else (out, {"batch_stats": variables["batch_stats"]})
-
-    m = config.model
-    if m in ("compass", "sound"):
-        b = batch["patches"].shape[0]
-        out, upd = apply(jnp.concatenate([batch["patches"], batch["copies"]]))
-        rot = out[0]
-        angular = losses.geodesic_loss(rot[b:], batch["rotations"] @ rot[:b])
-        metrics = {"angular": angular}
-        loss = angular
-        if m == "sound":
-            chamfer = jnp.mean(losses.chamfer_distance(out[2][:b], batch["patches"]))
-            metrics["chamfer"] = chamfer
-            loss = config.loss.chamfer_weight * chamfer + config.loss.angular_weight * angular
-    elif m in ("lead", "lead_pn"):
-        x = batch["patches"] if m == "lead" else lrf.flare_orient(batch["patches"])
-        out, upd = apply(x)
-        loss = jnp.mean(losses.chamfer_distance(out[1], x))
-        metrics = {"chamfer": loss}
-    elif m == "classify":
-        logits, upd = apply(batch["points"], rngs={"dropout": rng})
-        loss = jnp.mean(optax.softmax_cross_entropy_with_integer_labels(logits, batch["labels"]))
-        metrics = {"accuracy": jnp.mean(jnp.argmax(logits, -1) == batch["labels"])}
+    """``(loss, (metrics, new batch_stats))`` for one batch; what the network reads and how its
+    outputs are scored is its kind's spec (:mod:`sphere_jax.models`)."""
+    spec = models.spec(config.model)
+    x = spec.inputs(batch)
+    rngs = {"dropout": rng}
+    if train:
+        out, upd = model.apply(variables, x, train=True, mutable=["batch_stats"], rngs=rngs)
     else:
-        raise ValueError(f"unknown model {m!r}")
+        out = model.apply(variables, x, train=False, rngs=rngs)
+        upd = {"batch_stats": variables["batch_stats"]}
+    loss, metrics = spec.loss(out, {**batch, "inputs": x}, config)
     metrics["loss"] = loss
     return loss, (metrics, upd["batch_stats"])
 
@@ -86,7 +51,7 @@ def loss_fn(config, model, variables, batch, rng, train=True):
 
 def build_source(config):
     d = config.data
-    if config.model == "classify" or d.get("shapes", False):
+    if models.spec(config.model).labelled or d.get("shapes", False):
         root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
         return pipeline.ShapeSource(root, d.n_points, config.seed)
     return pipeline.PatchSource(pipeline.scan_paths(d.root), d.voxel, d.keypoint_leaf, d.radius,
@@ -94,31 +59,18 @@ def build_source(config):
 
 
 def get_batch(config, source, step, split="train"):
-    bs = config.train.batch_size
-    if isinstance(source, pipeline.ShapeSource):
-        split = "test" if split == "val" else split
-        if config.model != "classify":                        # Compass on whole shapes
-            return source.batch(step, bs, split, copies=True, occlusion=config.data.occlusion)
-        batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
-        if config.get("orient_bundle"):
-            from sphere_jax import api
-            batch["points"] = orient_shapes(api.cached_bundle(config.orient_bundle),
+    spec, bs = models.spec(config.model), config.train.batch_size
+    if not isinstance(source, pipeline.ShapeSource):
+        return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion)
+    split = "test" if split == "val" else split
+    if not spec.labelled:                                       # Compass on whole shapes
+        return source.batch(step, bs, split, copies=spec.copies,
+                            occlusion=config.data.occlusion)
+    batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
+    if config.get("orient_bundle"):
+        batch["points"] = api.orient_shapes(api.cached_bundle(config.orient_bundle),
                                             batch["points"])
-        return batch
-    return source.batch(step, bs, split, copies=config.model in ("compass", "sound"),
-                        occlusion=config.data.occlusion)
-
-
-def orient_shapes(bundle, shapes_BxNx3):
-    """Shapes turned into the canonical frame a Compass bundle (trained on whole shapes)
-    gives them: ``(p − centre) @ F``, in the shapes' own units."""
-    shapes_BxNx3 = np.asarray(shapes_BxNx3, np.float32)
-    n = bundle.config.data.n_points
-    rng = np.random.default_rng(0)
-    pick = rng.integers(0, shapes_BxNx3.shape[1], n)            # the network's point count
-    unit, centres = pipeline.unit_shapes(shapes_BxNx3)
-    frames = np.asarray(bundle.orient_patches(unit[:, pick], chunk=min(len(unit), 256)))
-    return np.einsum("bnk,bkj->bnj", shapes_BxNx3 - centres, frames).astype(np.float32)
+    return batch
 
 
 # ----------------------------------------------------------------------------------------------
@@ -127,7 +79,7 @@ def orient_shapes(bundle, shapes_BxNx3):
 
 def init_state(config, model, tx, example):
     key = jax.random.PRNGKey(config.seed)
-    x = example["points"] if config.model == "classify" else example["patches"]
+    x = example[models.spec(config.model).input_key]
     variables = jax.jit(functools.partial(model.init, train=False))(
         {"params": key, "dropout": key}, x)
     state = {"params": variables["params"], "batch_stats": variables.get("batch_stats", {}),
@@ -174,22 +126,10 @@ def _truncate_metrics(path, last_step):
     os.replace(tmp, path)
 
 
-def save_bundle(workdir, config, state):
-    """Inference bundle: ``bundle/variables`` (orbax) and ``bundle/config.json``."""
-    path = os.path.abspath(os.path.join(workdir, "bundle"))
-    os.makedirs(path, exist_ok=True)
+def save_bundle(workdir, config, state, training_data=None):
+    """The inference bundle ``workdir/bundle`` (:mod:`sphere_jax.bundle`)."""
     variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
-    with ocp.StandardCheckpointer() as ckpt:
-        target = os.path.join(path, "variables")
-        if os.path.exists(target):
-            import shutil
-            shutil.rmtree(target)
-        ckpt.save(target, variables)
-    tmp = os.path.join(path, "config.json.tmp")
-    with open(tmp, "w") as f:
-        f.write(config.to_json(indent=1))
-    os.replace(tmp, os.path.join(path, "config.json"))
-    return path
+    return bundle.save(os.path.join(workdir, "bundle"), config, variables, training_data)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -203,10 +143,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     trained weights (test-time adaptation). Returns the final state and the last metrics."""
     os.makedirs(workdir, exist_ok=True)
     source = build_source(config)
-    if config.model == "classify":
+    if models.spec(config.model).labelled:
         with config.unlocked():
             config.n_classes = len(source.classes)
-    model = build_model(config)
+    model = models.build(config)
     tx = optax.adam(config.train.learning_rate)
     state = init_state(config, model, tx, get_batch(config, source, 0))
     if init_variables is not None:
@@ -245,7 +185,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
             if done % config.train.checkpoint_every == 0 or done == config.train.steps:
                 mngr.save(done, args=ocp.args.StandardSave(state))
     mngr.wait_until_finished()
-    save_bundle(workdir, config, state)
+    save_bundle(workdir, config, state, source.statement())
     return state, last
 
 
@@ -255,21 +195,22 @@ def evaluate(config, source, state, eval_step):
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}
 
 
-def adapt(bundle, data_root, steps, workdir, learning_rate=None, progress=True):
-    """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND ``bundle`` with its own
-    self-supervised loss on the scans under ``data_root``; the adapted bundle is written to
-    ``workdir/bundle`` (re-running resumes). Returns ``(path, last metrics)``."""
-    if bundle.kind not in ("compass", "sound"):
-        raise ValueError(f"test-time adaptation is for compass and sound bundles, not "
-                         f"{bundle.kind!r}")
+def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True):
+    """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND bundle ``trained``
+    with its own self-supervised loss on the scans under ``data_root``; the adapted bundle is
+    written to ``workdir/bundle`` (re-running resumes). Returns ``(path, last metrics)``."""
+    if models.spec(trained.kind).orient is None:
+        able = [k for k, s in models.SPECS.items() if s.orient is not None]
+        raise ValueError(f"test-time adaptation is for {' and '.join(able)} bundles, not "
+                         f"{trained.kind!r}")
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
-    config = ml_collections.ConfigDict(bundle.config.to_dict())
+    config = ml_collections.ConfigDict(trained.config.to_dict())
     config.data.root = str(data_root)
     config.train.steps = int(steps)
     for key in ("checkpoint_every", "eval_every", "log_every"):
         config.train[key] = max(1, min(config.train[key], steps))
     if learning_rate:
         config.train.learning_rate = float(learning_rate)
-    _, last = train_and_evaluate(config, workdir, progress, init_variables=bundle.variables)
+    _, last = train_and_evaluate(config, workdir, progress, init_variables=trained.variables)
     return os.path.join(workdir, "bundle"), last

@@ -9,7 +9,7 @@ from math import cos, factorial, sin, sqrt
 
 import numpy as np
 
-from sphere_jax import so3, wigner
+from sphere_jax.spherical import so3, wigner
 
 
 def wigner_d_explicit(l: int, m: int, n: int, beta: float) -> float:

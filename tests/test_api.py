@@ -5,7 +5,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sphere_jax import api, models, so3, transforms
+from sphere_jax import api, models
+from sphere_jax.spherical import so3, transforms
 from sphere_jax.data import augment, io, patches
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -72,7 +73,7 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     from configs import sound
     from sphere_jax import training
     config = sound.get_config("tiny")
-    model = training.build_model(config)
+    model = models.build(config)
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
     variables = model.init(jax.random.PRNGKey(0), x * 0.3)
     state = {"params": variables["params"], "batch_stats": variables["batch_stats"]}

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from configs import classify, compass, lead, lead_pn, sound
-from sphere_jax import training
+from sphere_jax import models, training
 from sphere_jax.data import synthetic
 from tests.data.test_synthetic import SMALL
 
@@ -42,7 +42,7 @@ def test_one_step_of_every_config(name, small_root, tmp_path):
 def test_loss_decreases_on_a_fixed_batch(small_root):
     config = tiny("lead", small_root)
     source = training.build_source(config)
-    model = training.build_model(config)
+    model = models.build(config)
     import optax
     tx = optax.adam(3e-3)
     batch = training.get_batch(config, source, 0)

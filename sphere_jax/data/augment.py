@@ -1,6 +1,6 @@
 """Seeded augmentations of point clouds and patches (pure numpy; pass a Generator).
 
-``occlude`` is the seed's occlusion augmentation (DESIGN.md §3, thesis 3.1.5), applied to the
+``occlude`` is the seed's occlusion augmentation (CONVENTIONS.md §7, thesis 3.1.5), applied to the
 rotated copy only during Compass training.
 """
 from __future__ import annotations

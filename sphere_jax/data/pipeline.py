@@ -49,7 +49,7 @@ class PatchSource:
     def __init__(self, scan_paths, voxel, keypoint_leaf, radius, n_points, min_points,
                  val_fraction=0.1, seed=0):
         self.radius, self.n_points, self.min_points = radius, n_points, min_points
-        self.seed = seed
+        self.seed, self.scan_paths = seed, list(scan_paths)
         self.clouds, self.trees, index = [], [], []
         for s, path in enumerate(scan_paths):
             pts = patches.voxel_downsample(io.read_points(path).points, voxel)
@@ -70,6 +70,15 @@ class PatchSource:
 
     def __len__(self):
         return len(self.splits["train"])
+
+    def statement(self):
+        """What this source trains on, for the bundle: scans per folder, keypoints per split."""
+        folders = {}
+        for path in self.scan_paths:
+            folder = os.path.dirname(os.path.abspath(path))
+            folders[folder] = folders.get(folder, 0) + 1
+        return {"kind": "scans", "folders": folders,
+                "keypoints": {k: int(len(v)) for k, v in self.splits.items()}}
 
     def batch(self, step, batch_size, split="train", copies=False, occlusion=True):
         """``{'patches': [B, N, 3]}`` in units of the radius; with ``copies``, also
@@ -106,7 +115,7 @@ def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True):
 
 
 def unit_shapes(shapes_BxNx3):
-    """Whole shapes as unit patches (DESIGN.md §3, ModelNet): centred on the bounding-box
+    """Whole shapes as unit patches (CONVENTIONS.md §7, ModelNet): centred on the bounding-box
     centre, in units of half the largest bounding-box side. Returns ``(patches, centres)``."""
     lo, hi = shapes_BxNx3.min(1, keepdims=True), shapes_BxNx3.max(1, keepdims=True)
     centres = (lo + hi) / 2
@@ -144,6 +153,13 @@ class ShapeSource:
                                     f".txt shapes, <class>/train/*.off meshes, or *.h5 files)")
         if not self.splits["train"][0]:
             raise ValueError(f"no training shapes found under {root!r}")
+        self.root = os.path.abspath(root)
+
+    def statement(self):
+        """What this source trains on, for the bundle: the shape folder, shapes per split."""
+        return {"kind": "shapes", "folders": {self.root: len(self.splits["train"][0])},
+                "classes": len(self.classes),
+                "shapes": {k: len(v[0]) for k, v in self.splits.items()}}
 
     def batch(self, step, batch_size, split="train", rotate=False, copies=False,
               occlusion=True):

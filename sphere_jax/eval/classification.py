@@ -13,6 +13,7 @@ import jax
 import ml_collections
 import numpy as np
 
+from sphere_jax import api, training
 from sphere_jax.data import augment
 from sphere_jax.data.io import atomic_write
 from sphere_jax.eval import report
@@ -33,13 +34,12 @@ def test_points(source, n_points, seed=0):
 def accuracy(bundle, points_SxNx3, labels, orient_bundle=None, chunk=64):
     """Fraction of shapes the classifier bundle labels correctly (Compass-oriented first when
     ``orient_bundle`` is given)."""
-    from sphere_jax.training import orient_shapes
-    fwd = jax.jit(lambda x: bundle.model.apply(bundle.variables, x, train=False))
+    fwd = jax.jit(lambda x: bundle.model.apply(bundle.variables, x, train=False).logits)
     correct = 0
     for i in range(0, len(points_SxNx3), chunk):
         x = points_SxNx3[i:i + chunk]
         if orient_bundle is not None:
-            x = orient_shapes(orient_bundle, x)
+            x = api.orient_shapes(orient_bundle, x)
         logits = np.asarray(fwd(x))
         correct += int(np.sum(np.argmax(logits, -1) == labels[i:i + chunk]))
     return correct / len(points_SxNx3)
@@ -59,7 +59,6 @@ def method_config(config, method):
 
 def run(config, workdir, progress=True):
     """Train every method, score NR and AR; writes classification.csv / .md. Returns rows."""
-    from sphere_jax import api, training
     rows = []
     for method in [m.strip() for m in config.methods.split(",") if m.strip()]:
         c = method_config(config, method)

@@ -1,7 +1,7 @@
 """Hand-crafted local reference frames on exact neighbourhoods (vectorised numpy).
 
 Frames are ``[K, 3, 3]`` with columns x̂, ŷ, ẑ in world coordinates (the convention of
-:mod:`sphere_jax.lrf`, whose JAX FLARE the learned pipelines use on resampled patches).
+:mod:`sphere_jax.models.flare`, whose JAX FLARE the learned pipelines use on resampled patches).
 
 * SHOT (Tombari, Salti & Di Stefano 2010): eigenvectors of the covariance about the keypoint,
   each neighbour weighted by ``R − d``; x̂ largest, ẑ smallest eigenvalue; each sign chosen so

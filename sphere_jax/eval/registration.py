@@ -1,4 +1,4 @@
-"""Descriptor matching and registration on fragment pairs (DESIGN.md §3; seed 4.3).
+"""Descriptor matching and registration on fragment pairs (CONVENTIONS.md §7; seed 4.3).
 
 For each pair (i, j) with ground truth ``p_i = T p_j``:
 
@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
-from sphere_jax import so3
+from sphere_jax.spherical import so3
 from sphere_jax.eval import scenes as scene_lib
 
 TAU1, TAU2 = 0.10, 0.05

@@ -1,4 +1,4 @@
-"""LRF repeatability on scan pairs (DESIGN.md §3; seed 3.2).
+"""LRF repeatability on scan pairs (CONVENTIONS.md §5, §7; seed 3.2).
 
 "Perfect detector": the keypoints of scan i that have a point of scan j within ``match_dist``
 under the ground truth correspond to those points. The two frames (j's mapped by the ground
@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import so3
+from sphere_jax.spherical import so3
 from sphere_jax.eval import scenes as scene_lib
 
 RHO = 0.97

@@ -1,5 +1,5 @@
 """Benchmark inputs: sets of scans with ground-truth pair transforms, prepared the same way for
-every method (DESIGN.md §3: 2 cm voxel, normals from 17 neighbours, 5000 keypoints).
+every method (CONVENTIONS.md §7: 2 cm voxel, normals from 17 neighbours, 5000 keypoints).
 
 A :class:`PairSet` is one 3DMatch-layout scene or one Stanford ``.conf`` scan set;
 :func:`find_pair_sets` recognises either under a root folder. :func:`prepare` turns each scan

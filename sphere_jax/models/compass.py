@@ -6,24 +6,31 @@ geodesic distance between the two sides, on a rotated and occluded copy of the p
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import flax.linen as nn
 import jax
+import jax.numpy as jnp
 
-from sphere_jax import soft_argmax
+from sphere_jax.models import losses
+from sphere_jax.models.spec import ModelSpec
 from sphere_jax.models.spherical import PatchSignal, SphericalStack
+from sphere_jax.spherical import soft_argmax
+
+
+class CompassOut(NamedTuple):
+    rotations: jax.Array        # [N, 3, 3], columns x̂, ŷ, ẑ
+    maps: jax.Array             # [N, 2B, 2B, 2B], the SO(3) map the rotation is read from
 
 
 class Compass(nn.Module):
-    """``__call__(patches [N, P, 3], train) -> (rotations [N, 3, 3], maps [N, 2B, 2B, 2B])``;
-    the columns of each rotation are the LRF axes."""
+    """``__call__(patches [N, P, 3], train) -> CompassOut``."""
     bandwidths: Sequence[int] = (24, 24, 24, 24, 24)
     features: Sequence[int] = (40, 20, 10, 1)
     n_shells: int = 4
     temperature: float = 1.0
     window: float | None = None
-    fused: bool = True          # inference path of sphere_jax.fused (same outputs, faster)
+    fused: bool = True          # inference path of sphere_jax.spherical.fused (same outputs)
 
     @nn.compact
     def __call__(self, patches, train: bool = False):
@@ -32,4 +39,29 @@ class Compass(nn.Module):
                               fused=self.fused)(x, train)[:, 0]
         rot = jax.vmap(lambda m: soft_argmax.soft_argmax_rotation(
             m, self.temperature, self.window))(maps)
-        return rot, maps
+        return CompassOut(rot, maps)
+
+
+def with_copies(batch):
+    """Network input of a batch with rotated copies: ``[2B, N, 3]``, originals first."""
+    return jnp.concatenate([batch["patches"], batch["copies"]])
+
+
+def angular_loss(rotations_2Bx3x3, batch):
+    """Geodesic distance between the frame of each rotated copy and the rotated frame of its
+    original (rotations of :func:`with_copies`' input)."""
+    b = batch["patches"].shape[0]
+    return losses.geodesic_loss(rotations_2Bx3x3[b:], batch["rotations"] @ rotations_2Bx3x3[:b])
+
+
+def loss(out: CompassOut, batch, config):
+    angular = angular_loss(out.rotations, batch)
+    return angular, {"angular": angular}
+
+
+def orient(model, variables, patches):
+    return model.apply(variables, patches, train=False).rotations
+
+
+SPEC = ModelSpec(kind="compass", module=Compass, outputs=CompassOut, loss=loss,
+                 inputs=with_copies, copies=True, orient=orient)

@@ -1,23 +1,27 @@
-"""LEAD (thesis 4.1): an unsupervised rotation-equivariant descriptor, and LEAD-PN.
+"""LEAD (thesis 4.1): an unsupervised rotation-equivariant descriptor.
 
-LEAD: patch -> spherical encoder -> one-channel SO(3) map at bandwidth 4 (8³ = 512 values: the
+Patch -> spherical encoder -> one-channel SO(3) map at bandwidth 4 (8³ = 512 values: the
 descriptor, which rotates with the patch) -> folding decoder reconstructs the patch (Chamfer).
 At test time the descriptor is rotated to a canonical pose by an LRF, in the spectral domain.
-LEAD-PN: the same with a PointNet encoder on patches already oriented by an LRF (FLARE).
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import transforms
-
+from sphere_jax.models import losses
 from sphere_jax.models.folding import FoldingDecoder
-from sphere_jax.models.pointnet import PointNetEncoder
+from sphere_jax.models.spec import ModelSpec
 from sphere_jax.models.spherical import PatchSignal, SphericalStack
+from sphere_jax.spherical import transforms
+
+
+class LeadOut(NamedTuple):
+    maps: jax.Array             # [N, 2b, 2b, 2b] descriptor maps on SO(3)
+    reconstructions: jax.Array  # [N, M, 3]
 
 
 def canonical_descriptors(maps_Nx2bx2bx2b, frames_Nx3x3):
@@ -29,8 +33,8 @@ def canonical_descriptors(maps_Nx2bx2bx2b, frames_Nx3x3):
 
 
 class Lead(nn.Module):
-    """``__call__(patches [N, P, 3], train) -> (descriptor maps [N, 2b, 2b, 2b],
-    reconstructions [N, M, 3])``; the descriptor is the map flattened."""
+    """``__call__(patches [N, P, 3], train) -> LeadOut``; the descriptor is the map
+    flattened."""
     bandwidths: Sequence[int] = (24, 16, 12, 8, 6, 4)
     features: Sequence[int] = (40, 40, 40, 40, 1)
     n_shells: int = 4
@@ -38,9 +42,9 @@ class Lead(nn.Module):
     decoder_hidden: Sequence[int] = (514, 257, 128)
     # The seed puts ReLU after the last layer too; that makes the descriptor a non-band-limited
     # grid function, which Wigner-D rotation then only approximates (measured: 0.29 relative
-    # error with it, see tests/test_api.py). Off by default.
+    # error with it, see tests/models/test_lead.py). Off by default.
     final_relu: bool = False
-    fused: bool = True          # inference path of sphere_jax.fused (same outputs, faster)
+    fused: bool = True          # inference path of sphere_jax.spherical.fused (same outputs)
 
     def setup(self):
         self.signal = PatchSignal(self.bandwidths[0], self.n_shells)
@@ -53,16 +57,23 @@ class Lead(nn.Module):
 
     def __call__(self, patches, train: bool = False):
         maps = self.encode(patches, train)
-        return maps, self.decoder(maps.reshape(maps.shape[0], -1), train)
+        return LeadOut(maps, self.decoder(maps.reshape(maps.shape[0], -1), train))
 
 
-class LeadPN(nn.Module):
-    """``__call__(oriented patches [N, P, 3], train) -> (codes [N, D], reconstructions)``."""
-    features: Sequence[int] = (64, 128, 512)
-    decoder_side: int = 35
-    decoder_hidden: Sequence[int] = (514, 257, 128)
+def reconstruction_loss(reconstructions, batch):
+    """Mean Chamfer distance between the reconstructions and the patches the network read."""
+    return jnp.mean(losses.chamfer_distance(reconstructions, batch["inputs"]))
 
-    @nn.compact
-    def __call__(self, patches, train: bool = False):
-        code = PointNetEncoder(self.features)(patches, train)
-        return code, FoldingDecoder(self.decoder_side, self.decoder_hidden)(code, train)
+
+def loss(out: LeadOut, batch, config):
+    chamfer = reconstruction_loss(out.reconstructions, batch)
+    return chamfer, {"chamfer": chamfer}
+
+
+def describe(model, variables, patches, frames):
+    maps = model.apply(variables, patches, method="encode")
+    return canonical_descriptors(maps, frames)
+
+
+SPEC = ModelSpec(kind="lead", module=Lead, outputs=LeadOut, loss=loss, describe=describe,
+                 describe_frames=True)

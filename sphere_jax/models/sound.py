@@ -9,20 +9,27 @@ no longer depends on the patch's orientation.
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import flax.linen as nn
 import jax
 
-from sphere_jax import fused, layers, soft_argmax
+from sphere_jax.models import compass, lead
 from sphere_jax.models.folding import FoldingDecoder
 from sphere_jax.models.lead import canonical_descriptors
+from sphere_jax.models.spec import ModelSpec
 from sphere_jax.models.spherical import PatchSignal, SphericalStack
+from sphere_jax.spherical import fused, layers, soft_argmax
+
+
+class SoundOut(NamedTuple):
+    rotations: jax.Array        # [N, 3, 3] from the LRF branch
+    maps: jax.Array             # [N, 8, 8, 8] descriptor maps (not yet oriented)
+    reconstructions: jax.Array  # [N, M, 3]
 
 
 class Sound(nn.Module):
-    """``__call__(patches, train) -> (rotations [N, 3, 3], descriptor maps [N, 8, 8, 8],
-    reconstructions [N, M, 3])``."""
+    """``__call__(patches [N, P, 3], train) -> SoundOut``."""
     s2_bandwidths: Sequence[int] = (24, 24)
     s2_features: int = 40
     descriptor_bandwidths: Sequence[int] = (24, 16, 12, 8, 4)
@@ -34,7 +41,7 @@ class Sound(nn.Module):
     decoder_hidden: Sequence[int] = (514, 257, 128)
     temperature: float = 1.0
     window: float | None = None
-    fused: bool = True          # inference path of sphere_jax.fused (same outputs, faster)
+    fused: bool = True          # inference path of sphere_jax.spherical.fused (same outputs)
 
     def setup(self):
         self.signal = PatchSignal(self.s2_bandwidths[0], self.n_shells)
@@ -51,7 +58,7 @@ class Sound(nn.Module):
 
     def trunk(self, patches, train):
         """The shared S2 layer's output: grids ``[N, C, 2B, 2B, 2B]``, or at inference with
-        ``fused`` their spectrum (:mod:`sphere_jax.fused`) — at B = 24 the grids of a chunk of
+        ``fused`` their spectrum (:mod:`sphere_jax.spherical.fused`) — at B = 24 the grids of a chunk of
         256 patches would take 4.5 GB."""
         x = self.signal(patches)
         if train or not self.fused:
@@ -67,9 +74,28 @@ class Sound(nn.Module):
         lrf_maps = self.lrf(h, train)[:, 0]
         rot = jax.vmap(lambda m: soft_argmax.soft_argmax_rotation(
             m, self.temperature, self.window))(lrf_maps)
-        return rot, maps, self.decoder(maps.reshape(maps.shape[0], -1), train)
+        return SoundOut(rot, maps, self.decoder(maps.reshape(maps.shape[0], -1), train))
 
     def describe(self, patches):
         """Self-oriented descriptors ``[N, 512]``: each map rotated by its LRF's inverse."""
-        rot, maps, _ = self(patches, train=False)
-        return canonical_descriptors(maps, rot)
+        out = self(patches, train=False)
+        return canonical_descriptors(out.maps, out.rotations)
+
+
+def loss(out: SoundOut, batch, config):
+    """``chamfer_weight · Chamfer + angular_weight · angular`` (seed 4.2: 100 and 1); the
+    reconstructions of the originals only (the first half of the batch)."""
+    b = batch["patches"].shape[0]
+    angular = compass.angular_loss(out.rotations, batch)
+    chamfer = lead.reconstruction_loss(out.reconstructions[:b], {"inputs": batch["patches"]})
+    total = config.loss.chamfer_weight * chamfer + config.loss.angular_weight * angular
+    return total, {"angular": angular, "chamfer": chamfer}
+
+
+def describe(model, variables, patches, frames=None):
+    return model.apply(variables, patches, method="describe")
+
+
+SPEC = ModelSpec(kind="sound", module=Sound, outputs=SoundOut, loss=loss,
+                 inputs=compass.with_copies, copies=True, orient=compass.orient,
+                 describe=describe)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from sphere_jax import so3
+from sphere_jax.spherical import so3
 
 
 def geodesic_loss(pred_x33, target_x33):

@@ -32,7 +32,7 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import so3, wigner
+from sphere_jax.spherical import so3, wigner
 
 
 def check_sizes(b, lmax, name_b="bandwidth"):

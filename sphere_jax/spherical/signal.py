@@ -1,4 +1,4 @@
-"""Point patch -> spherical signal ``[K(shell), 2B(β), 2B(α)]`` (DESIGN.md §3, from PRIN).
+"""Point patch -> spherical signal ``[K(shell), 2B(β), 2B(α)]`` (CONVENTIONS.md §7, from PRIN).
 
 A patch is N points in the keypoint's local coordinates (keypoint at the origin), N fixed by
 drawing with replacement (:func:`sample_patch`). Each point ``p = r·x(β, α)`` spreads a unit of
@@ -26,7 +26,7 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import so3
+from sphere_jax.spherical import so3
 
 # A point closer to the keypoint than this fraction of the radius has no usable direction.
 _MIN_RADIUS_FRACTION = 1e-6

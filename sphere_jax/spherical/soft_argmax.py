@@ -1,4 +1,4 @@
-"""Parzen-weighted soft arg-max of an SO(3) map -> rotation (Compass, DESIGN.md §3).
+"""Parzen-weighted soft arg-max of an SO(3) map -> rotation (Compass, CONVENTIONS.md §7).
 
 The hard arg-max picks the cell; around it, every cell is weighted by ``softmax(x/τ)`` times a
 cubic B-spline Parzen window of its index distance to the arg-max (h cells wide), and the output
@@ -15,7 +15,7 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import so3, transforms
+from sphere_jax.spherical import so3, transforms
 
 
 def parzen_window(d, h):

@@ -3,7 +3,7 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from sphere_jax import signal, so3, transforms
+from sphere_jax.spherical import signal, so3, transforms
 
 
 def ball(rng, n, radius=1.0):

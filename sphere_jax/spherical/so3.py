@@ -1,6 +1,6 @@
 """Rotations and sampling grids: the one module that owns the conventions.
 
-Conventions (DESIGN.md §2), used by every other module:
+Conventions (CONVENTIONS.md §2–§3), used by every other module:
 
 * Points are ``[N, 3]``; a rotation acts actively, ``p' = R p``.
 * ZYZ Euler angles: ``R(α, β, γ) = Rz(α) · Ry(β) · Rz(γ)``, right-handed.

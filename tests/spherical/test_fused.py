@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from sphere_jax import correlation, fused, layers, transforms
+from sphere_jax.spherical import correlation, fused, layers, transforms
 from sphere_jax.models.spherical import SphericalStack
 from tests import reference
 from tests.reference import rel_err

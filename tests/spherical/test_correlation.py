@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from sphere_jax import correlation, transforms
+from sphere_jax.spherical import correlation, transforms
 from tests import reference
 from tests.reference import rel_err
 

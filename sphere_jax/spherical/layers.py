@@ -9,8 +9,8 @@ import numpy as np
 import flax.linen as nn
 import jax.numpy as jnp
 
-from sphere_jax import correlation, fused, transforms
-from sphere_jax.correlation import KernelGrid
+from sphere_jax.spherical import correlation, fused, transforms
+from sphere_jax.spherical.correlation import KernelGrid
 
 
 def _resolve_grid(grid, on_so3, b_in) -> KernelGrid:

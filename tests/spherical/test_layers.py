@@ -3,7 +3,7 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from sphere_jax import correlation, layers, so3, transforms
+from sphere_jax.spherical import correlation, layers, so3, transforms
 from tests import reference
 from tests.reference import rel_err
 

@@ -1,7 +1,7 @@
 """Hand-crafted local reference frames (JAX, vmappable over patches).
 
 An LRF is a 3×3 matrix whose columns are the local x̂, ŷ, ẑ axes in world coordinates
-(DESIGN.md §2); canonical coordinates of a patch are ``p @ F`` (= ``Fᵀ p`` per point).
+(CONVENTIONS.md §5); canonical coordinates of a patch are ``p @ F`` (= ``Fᵀ p`` per point).
 """
 from __future__ import annotations
 

@@ -3,7 +3,8 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from sphere_jax import losses, so3
+from sphere_jax.models import losses
+from sphere_jax.spherical import so3
 
 
 def test_geodesic_loss_known_pairs():

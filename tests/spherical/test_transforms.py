@@ -2,7 +2,7 @@ import numpy as np
 import jax
 import pytest
 
-from sphere_jax import so3, transforms
+from sphere_jax.spherical import so3, transforms
 from tests import reference
 from tests.reference import rel_err
 

@@ -1,6 +1,6 @@
 """Wigner-d and Wigner-D functions, built once in float64.
 
-Convention (s2cnn / lie_learn, DESIGN.md §2):
+Convention (s2cnn / lie_learn, CONVENTIONS.md §4):
 ``D^l_{mn}(α, β, γ) = e^{-imα} d^l_{mn}(β) e^{-inγ}``, with ``d^l(β) = exp(-iβ J_y)`` in the
 basis ``|l, m⟩`` (Condon–Shortley phases). D is a representation:
 ``D(R1 R2) = D(R1) D(R2)`` for ``R = Rz(α) Ry(β) Rz(γ)``.

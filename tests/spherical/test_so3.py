@@ -3,7 +3,7 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from sphere_jax import so3
+from sphere_jax.spherical import so3
 
 
 def test_euler_matrix_round_trip_and_convention():

@@ -28,7 +28,7 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
-from sphere_jax import correlation, so3, transforms
+from sphere_jax.spherical import correlation, so3, transforms
 
 # Grid floats per block: 5 MB of float32 grid (one patch × 40 channels at B = 16) measured
 # fastest on the 2-core development machine (L2 1 MB/core, L3 32 MB); larger blocks spill.

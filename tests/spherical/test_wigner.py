@@ -1,6 +1,6 @@
 import numpy as np
 
-from sphere_jax import so3, wigner
+from sphere_jax.spherical import so3, wigner
 from tests import reference
 
 

@@ -3,7 +3,7 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-from sphere_jax import so3, soft_argmax
+from sphere_jax.spherical import so3, soft_argmax
 
 
 def planted_map(b, peak, width=1.5, seed=0):

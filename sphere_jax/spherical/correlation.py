@@ -3,7 +3,7 @@
 A kernel is a set of weights on a small grid of points ``g`` (on S2, or rotations in SO(3)).
 Correlating a signal with it gives, for every rotation R of the output SO(3) grid,
 
-    h(R) = Σ_g w_g f(R g)          (DESIGN.md: (ψ ⋆ f)(R) = ∫ f(x) ψ(R⁻¹x) dx, ψ = Σ w_g δ_g)
+    h(R) = Σ_g w_g f(R g)          (CONVENTIONS.md §4: (ψ ⋆ f)(R) = ∫ f(x) ψ(R⁻¹x) dx, ψ = Σ w_g δ_g)
 
 evaluated exactly for the band-limited f, in the spectral domain (Cohen et al. 2018):
 
@@ -26,7 +26,7 @@ import functools
 import numpy as np
 import jax.numpy as jnp
 
-from sphere_jax import so3, transforms, wigner
+from sphere_jax.spherical import so3, transforms, wigner
 
 
 # ----------------------------------------------------------------------------------------------
@@ -98,7 +98,7 @@ def so3_equatorial_grid(max_beta=0.0, max_gamma=np.pi / 8, n_alpha=32, n_beta=1,
 
 
 def make_grid(kind: str, on_so3: bool, bandwidth: int | None = None) -> KernelGrid:
-    """Named grids of DESIGN.md §3: ``'near_identity'`` or ``'equatorial'`` (n_α = 2B)."""
+    """Named grids of CONVENTIONS.md §7: ``'near_identity'`` or ``'equatorial'`` (n_α = 2B)."""
     if kind == "near_identity":
         return so3_near_identity_grid() if on_so3 else s2_near_identity_grid()
     if kind == "equatorial":

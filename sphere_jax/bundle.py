@@ -1,0 +1,84 @@
+"""Inference bundles on disk: what training writes and the API loads.
+
+A bundle is a folder::
+
+    bundle/config.json          the training config (ml_collections JSON)
+    bundle/variables/           params + batch_stats (an orbax StandardCheckpoint)
+    bundle/training_data.json   what the bundle was trained on: folders, scans, patches
+
+The JSON files are written under a temporary name and renamed into place, the variables
+first: a folder whose ``config.json`` is missing is not a bundle. :func:`sphere_jax.api.load_bundle`
+turns a folder into a model; this module only reads and writes the files.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+
+import ml_collections
+import orbax.checkpoint as ocp
+
+CONFIG = "config.json"
+VARIABLES = "variables"
+TRAINING_DATA = "training_data.json"
+
+
+def _write_json(path, text):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def save(path, config, variables, training_data=None):
+    """Write a bundle folder ``path`` (created if missing); returns its absolute path.
+    ``variables``: ``{'params', 'batch_stats'}``; ``training_data``: a JSON-able statement of
+    the training data (see :meth:`sphere_jax.data.pipeline.PatchSource.statement`)."""
+    path = os.path.abspath(str(path))
+    os.makedirs(path, exist_ok=True)
+    target = os.path.join(path, VARIABLES)
+    if os.path.exists(target):
+        shutil.rmtree(target)
+    with ocp.StandardCheckpointer() as ckpt:
+        ckpt.save(target, variables)
+    _write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
+    if training_data is not None:
+        _write_json(os.path.join(path, TRAINING_DATA), json.dumps(training_data, indent=1))
+    return path
+
+
+def is_bundle(path) -> bool:
+    return os.path.isfile(os.path.join(str(path), CONFIG))
+
+
+def read_config(path) -> ml_collections.ConfigDict:
+    """The config a bundle was trained with."""
+    path = os.path.abspath(str(path))
+    if not is_bundle(path):
+        raise FileNotFoundError(f"{path} is not a bundle (no {CONFIG})")
+    with open(os.path.join(path, CONFIG)) as f:
+        return ml_collections.ConfigDict(json.load(f))
+
+
+def read_variables(path) -> dict:
+    with ocp.StandardCheckpointer() as ckpt:
+        return ckpt.restore(os.path.join(os.path.abspath(str(path)), VARIABLES))
+
+
+def read_training_data(path) -> dict:
+    """The bundle's training-data statement; bundles written before it existed get the
+    folders of their config and no counts."""
+    file = os.path.join(str(path), TRAINING_DATA)
+    if os.path.isfile(file):
+        with open(file) as f:
+            return json.load(f)
+    roots = [r.strip() for r in str(read_config(path).data.get("root", "")).split(",")
+             if r.strip()]
+    return {"folders": {r: None for r in (roots or ["embedded"])}, "counts": "not recorded"}
+
+
+def stamp(path):
+    """Changes when the bundle is rewritten (for caches keyed on the folder)."""
+    cfg = os.path.join(os.path.abspath(str(path)), CONFIG)
+    return os.stat(cfg).st_mtime_ns if os.path.isfile(cfg) else None

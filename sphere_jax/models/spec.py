@@ -1,0 +1,61 @@
+"""What the trainer and the inference API know of a model kind: one :class:`ModelSpec` per
+``models/<kind>.py``, registered by kind in :mod:`sphere_jax.models`.
+
+A spec answers every question that used to be an ``if config.model == ...`` chain: which module
+to build, what the network reads from a batch, what the batch must carry (rotated copies,
+labels), the loss, and how a trained model orients or describes patches.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, NamedTuple, Optional
+
+import flax.linen as nn
+
+# (outputs, batch, config) -> (loss, metrics); ``batch['inputs']`` is what the network read.
+LossFn = Callable[[NamedTuple, dict, Any], tuple]
+# (model, variables, unit patches [K, N, 3]) -> rotations [K, 3, 3] (columns x̂, ŷ, ẑ)
+OrientFn = Callable[[nn.Module, dict, Any], Any]
+# (model, variables, unit patches [K, N, 3], frames [K, 3, 3] or None) -> descriptors [K, D]
+DescribeFn = Callable[[nn.Module, dict, Any, Any], Any]
+
+
+def _patches(batch):
+    return batch["patches"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelSpec:
+    """One model kind.
+
+    Attributes:
+      kind: the name configs use (``config.model``).
+      module: the flax module; built as ``module(**config.model_kwargs)`` unless ``build``.
+      outputs: the NamedTuple its ``__call__`` returns.
+      loss: its self-supervised (or supervised) loss, :data:`LossFn`.
+      inputs: batch -> the array the network reads (default ``batch['patches']``).
+      input_key: the batch field that sets the network's input shape at initialisation.
+      copies: batches carry a rotated, occluded copy of each patch and its rotation.
+      labelled: trained on shape labels (batches of ``points`` and ``labels``).
+      orient / describe: inference on unit patches (None: the kind does not do it).
+      describe_frames: ``describe`` turns its output by LRFs (FLARE unless given).
+      build: config -> module, for modules that need more than ``model_kwargs``.
+    """
+    kind: str
+    module: type
+    outputs: type
+    loss: LossFn
+    inputs: Callable[[dict], Any] = _patches
+    input_key: str = "patches"
+    copies: bool = False
+    labelled: bool = False
+    orient: Optional[OrientFn] = None
+    describe: Optional[DescribeFn] = None
+    describe_frames: bool = False
+    build: Optional[Callable[[Any], nn.Module]] = None
+
+    def make(self, config) -> nn.Module:
+        """The flax module of ``config``."""
+        if self.build is not None:
+            return self.build(config)
+        return self.module(**dict(config.model_kwargs))
