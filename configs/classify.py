@@ -10,12 +10,8 @@ one trained bundle per method under it. Expected on the embedded 12-class shape 
 PointNet well above chance (1/12) in NR and close to chance in AR; Compass + PointNet about
 as accurate in AR as in NR. The Compass bundle comes from ``--config=compass_shapes``.
 """
-import os
-
 from configs import common
-
-CHECKPOINTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                           "checkpoints")
+from sphere_jax import paths
 
 
 def get_config(arg=None):
@@ -24,7 +20,7 @@ def get_config(arg=None):
     c.model = "classify"
     c.methods = "pointnet,compass+pointnet"
     c.orient_bundle = ""              # set per method by the experiment; see compass_bundle
-    c.compass_bundle = os.path.join(CHECKPOINTS, "compass_shapes_cpu", "bundle")
+    c.compass_bundle = paths.shipped_bundle("compass_shapes_cpu")
     c.eval_rotation_seed = 0          # AR split: one seeded rotation per test shape
     c.data.n_points = {"paper": 2048, "cpu": 512, "tiny": 64}[size]
     c.data.rotate = False            # train in canonical pose

@@ -1,18 +1,11 @@
 """Defaults shared by the evaluation configs (data preparation, bundles, output)."""
 from __future__ import annotations
 
-import os
-
 import ml_collections
 
+from sphere_jax.paths import shipped_bundle as shipped
+
 SIZES = ("", "quick", "tiny")
-CHECKPOINTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                           "checkpoints")
-
-
-def shipped(name):
-    path = os.path.join(CHECKPOINTS, name, "bundle")
-    return path if os.path.isdir(path) else ""
 
 
 def base(arg) -> ml_collections.ConfigDict:

@@ -1,7 +1,7 @@
 """Write the embedded default data: ``python -m experiments.make_data --out=DIR [--seed=0]``.
 
 Synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shape set, RGB-D object
-frames and object crops in the Washington RGB-D layout (see :mod:`sphere_jax.data.synthetic`).
+frames and object crops in the Washington RGB-D layout (see :mod:`sphere_jax.data.generators.synthetic`).
 Same seed, same bytes.
 """
 from __future__ import annotations
@@ -10,7 +10,7 @@ import argparse
 import json
 import time
 
-from sphere_jax.data import synthetic
+from sphere_jax.data.generators import synthetic
 
 
 def main(argv=None):

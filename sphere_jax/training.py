@@ -22,7 +22,8 @@ import orbax.checkpoint as ocp
 from tqdm import tqdm
 
 from sphere_jax import api, bundle, models
-from sphere_jax.data import pipeline, synthetic
+from sphere_jax.data import pipeline
+from sphere_jax.data.generators import synthetic
 
 
 # ----------------------------------------------------------------------------------------------

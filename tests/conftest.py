@@ -1,14 +1,12 @@
-import os
-
 import pytest
 
-SHARED = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "..", "shared",
-                                       "data"))
+from sphere_jax import paths
 
 
 @pytest.fixture(scope="session")
 def shared():
-    """Root of the real scans in ``../shared/data`` (skips where the checkout has none)."""
-    if not os.path.isdir(SHARED):
-        pytest.skip("real data ../shared/data not present")
-    return SHARED
+    """Root of the real scans (:func:`sphere_jax.paths.real_data_root`; skips without them)."""
+    root = paths.real_data_root()
+    if root is None:
+        pytest.skip("real data (../shared/data or $SPHERE_JAX_REAL_DATA) not present")
+    return root

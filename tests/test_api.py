@@ -7,7 +7,8 @@ import pytest
 
 from sphere_jax import api, models
 from sphere_jax.spherical import so3, transforms
-from sphere_jax.data import augment, io, patches
+from sphere_jax.data import augment, patches
+from sphere_jax.data.readers import io
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 COMPASS = os.path.join(REPO, "checkpoints", "compass_cpu", "bundle")

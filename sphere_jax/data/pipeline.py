@@ -11,7 +11,9 @@ import os
 import numpy as np
 from sklearn.neighbors import KDTree
 
-from sphere_jax.data import augment, io, patches, synthetic
+from sphere_jax.data import augment, patches
+from sphere_jax.data.readers import io
+from sphere_jax.data.generators import synthetic
 
 
 def find_scans(root):

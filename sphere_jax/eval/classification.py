@@ -15,7 +15,7 @@ import numpy as np
 
 from sphere_jax import api, training
 from sphere_jax.data import augment
-from sphere_jax.data.io import atomic_write
+from sphere_jax.data.readers.io import atomic_write
 from sphere_jax.eval import report
 
 METHODS = ("pointnet", "compass+pointnet")

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax.data.washington import Sample
+from sphere_jax.data.readers.washington import Sample
 
 PROTOCOLS = ("category", "instance_lso", "instance_acf")
 FEATURE_SETS = ("colour", "shape", "colour+shape")
@@ -146,7 +146,8 @@ def markdown(rows):
 def run(config, workdir, progress=True):
     """The colour + shape benchmark of ``configs/eval_objects.py``: objects.csv / objects.md."""
     from sphere_jax import api
-    from sphere_jax.data import synthetic, washington
+    from sphere_jax.data import washington
+    from sphere_jax.data.generators import synthetic
     from sphere_jax.eval import report
     root = config.data.root or synthetic.ensure_default_objects(config.seed)
     cats = [c.strip() for c in config.data.categories.split(",") if c.strip()] or None

@@ -14,7 +14,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from sphere_jax.data import datasets, patches
+from sphere_jax.data import patches
+from sphere_jax.data.readers import rgbd
 
 
 @dataclasses.dataclass
@@ -48,7 +49,7 @@ def crop_box(depth, intrinsics, box, depth_scale=1000.0, color=None):
         raise ValueError(f"box {box} lies outside the {w}x{h} image")
     crop = np.asarray(depth)[v0:v1 + 1, u0:u1 + 1]
     col = None if color is None else np.asarray(color)[v0:v1 + 1, u0:u1 + 1]
-    return datasets.depth_to_cloud(crop, intrinsics, col, depth_scale=depth_scale,
+    return rgbd.depth_to_cloud(crop, intrinsics, col, depth_scale=depth_scale,
                                    origin=(u0, v0))
 
 
@@ -195,8 +196,8 @@ def run(config, workdir, progress=True):
     """Pose benchmark of ``configs/eval_pose.py`` on labelled RGB-D frames: every visible
     instance of every test frame, from its ground-truth box. Writes pose.csv / pose.md."""
     from tqdm.auto import tqdm
-    from sphere_jax.data import synthetic
-    from sphere_jax.data.datasets import read_object_frames
+    from sphere_jax.data.generators import synthetic
+    from sphere_jax.data.readers.rgbd import read_object_frames
     from sphere_jax.eval import recognition, report
     root = config.data.root or os.path.join(synthetic.ensure_default_data(config.seed),
                                             "objects")

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from sklearn.neighbors import KDTree
 
 from sphere_jax.data import patches
-from sphere_jax.data.datasets import ObjectFrame
+from sphere_jax.data.readers.rgbd import ObjectFrame
 from sphere_jax.eval.neighbourhood import estimate_normals
 from sphere_jax.eval.pose import project_box
 from sphere_jax.eval.scenes import Fragment, transform
@@ -290,12 +290,13 @@ def evaluate(test_frames, database, describers: dict, leaf, voxel, match_thresho
 def run(config, workdir, progress=True):
     """Saliency Boost benchmark of ``configs/eval_recognition.py``: recognition.csv / .md,
     pr_curves.png and time_vs_auc.png."""
-    from sphere_jax.data import datasets, synthetic
+    from sphere_jax.data.generators import synthetic
+    from sphere_jax.data.readers import rgbd
     from sphere_jax.eval import methods as method_lib, report, saliency as saliency_lib
     from sphere_jax.eval.benchmark import bundle_paths, chosen_methods
     d = config.data
     root = d.root or os.path.join(synthetic.ensure_default_data(config.seed), "objects")
-    frames = datasets.read_object_frames(root)
+    frames = rgbd.read_object_frames(root)
     model_frames, test_frames = split_frames(frames, config.model_views)
     if d.max_frames:
         test_frames = test_frames[:d.max_frames]

@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from sphere_jax.data.io import atomic_write
+from sphere_jax.data.readers.io import atomic_write
 
 REGISTRATION_COLUMNS = ("method", "scene", "pairs", "fmr", "inlier_ratio", "n_correct",
                         "rre_deg", "rte_m", "ms_per_keypoint", "rr")

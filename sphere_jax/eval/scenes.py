@@ -19,7 +19,8 @@ import numpy as np
 from sklearn.neighbors import KDTree
 from tqdm.auto import tqdm
 
-from sphere_jax.data import augment, datasets, patches
+from sphere_jax.data import augment, patches
+from sphere_jax.data.readers import stanford, threedmatch
 from sphere_jax.eval.neighbourhood import estimate_normals
 
 
@@ -54,7 +55,7 @@ def transform(points, t):
     return points @ t[:3, :3].T + t[:3, 3]
 
 
-def fragment_scene(scene: datasets.FragmentScene) -> PairSet:
+def fragment_scene(scene: threedmatch.FragmentScene) -> PairSet:
     if scene.skipped:
         warnings.warn(f"{scene.name}: {len(scene.skipped)} ground-truth pair(s) skipped, their "
                       f"clouds are missing (partial download?)", stacklevel=2)
@@ -64,7 +65,7 @@ def fragment_scene(scene: datasets.FragmentScene) -> PairSet:
         if not os.path.isfile(path):
             return None
         cloud = scene.cloud(k).points
-        return cloud[datasets.read_keypoint_indices(path, len(cloud))]
+        return cloud[threedmatch.read_keypoint_indices(path, len(cloud))]
 
     return PairSet(scene.name, list(scene.fragments), dict(scene.transforms),
                    lambda k: scene.cloud(k).points, keypoints)
@@ -74,7 +75,7 @@ def stanford_scans(conf_path, voxel, min_overlap=0.10) -> PairSet:
     """The scans of a Stanford ``.conf``; pairs whose overlap (fraction of either scan within
     2 voxels of the other under the ground truth) exceeds ``min_overlap``, as the seed's
     Stanford Views protocol."""
-    scans = datasets.load_stanford_scans(conf_path)
+    scans = stanford.load_stanford_scans(conf_path)
     clouds = {k: patches.voxel_downsample(scans.cloud(k).points, voxel) for k in scans.names}
     transforms = {}
     for a, i in enumerate(scans.names):
@@ -98,13 +99,13 @@ def find_pair_sets(root, voxel=0.02, min_overlap=0.10):
     if confs:
         return [stanford_scans(c, voxel, min_overlap) for c in confs]
     if glob.glob(os.path.join(root, "cloud_bin_*.ply")):
-        return [fragment_scene(datasets.load_fragment_scene(root))]
+        return [fragment_scene(threedmatch.load_fragment_scene(root))]
     dirs = sorted(os.path.dirname(p) for p in glob.glob(os.path.join(root, "*",
                                                                        "cloud_bin_0.ply")))
     if not dirs:
         raise FileNotFoundError(f"{root}: no Stanford .conf, no cloud_bin_K.ply fragments and "
                                 f"no scene folders holding them")
-    return [fragment_scene(datasets.load_fragment_scene(d)) for d in dirs]
+    return [fragment_scene(threedmatch.load_fragment_scene(d)) for d in dirs]
 
 
 def rotations_for(pair_set: PairSet, seed):

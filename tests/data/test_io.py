@@ -3,7 +3,7 @@ import os
 import numpy as np
 import pytest
 
-from sphere_jax.data import io
+from sphere_jax.data.readers import io
 
 
 def test_real_formats_read_like_open3d(shared):
@@ -106,10 +106,10 @@ def test_modelnet_h5_needs_h5py_or_reads_clean_errors(tmp_path):
 
 
 def test_keypoint_index_files(shared, tmp_path):
-    from sphere_jax.data import datasets
-    idx = datasets.read_keypoint_indices(
+    from sphere_jax.data.readers import threedmatch
+    idx = threedmatch.read_keypoint_indices(
         os.path.join(shared, "3dmatch/demo_fullres/cloud_bin_0_keypoints.txt"), 258342)
     assert idx.shape == (1000,) and idx.max() < 258342
     (tmp_path / "k.txt").write_text("1\n2\n999\n")
     with pytest.raises(io.DataError, match=r"\[0, 10\)"):
-        datasets.read_keypoint_indices(tmp_path / "k.txt", 10)
+        threedmatch.read_keypoint_indices(tmp_path / "k.txt", 10)

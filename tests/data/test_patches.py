@@ -3,7 +3,8 @@ import os
 import numpy as np
 import pytest
 
-from sphere_jax.data import augment, io, patches
+from sphere_jax.data import augment, patches
+from sphere_jax.data.readers import io
 
 
 def test_patches_are_local_fixed_size_and_exclude_the_keypoint():

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 from sklearn.neighbors import NearestNeighbors
 
-from sphere_jax.data import camera, datasets, io, synthetic
+from sphere_jax.data.generators import camera, synthetic
+from sphere_jax.data.readers import io
+from sphere_jax.data.readers import rgbd, threedmatch
 
 SMALL_CAMERA = camera.Camera(width=160, height=120, fx=146.25, fy=146.25)
 SMALL = dict(scene_kwargs=dict(n_frames=16, frames_per_fragment=4, stride=2, voxel=0.04,
@@ -40,8 +42,8 @@ def test_same_seed_same_bytes(small_data):
 
 def test_every_pair_aligns_under_its_ground_truth(small_data):
     root = small_data / "a" / "3dmatch"
-    scene = datasets.load_fragment_scene(root / "synth-room-0")
-    lo = datasets.load_fragment_scene(root / "synth-room-0",
+    scene = threedmatch.load_fragment_scene(root / "synth-room-0")
+    lo = threedmatch.load_fragment_scene(root / "synth-room-0",
                                       root / "3DLoMatch" / "synth-room-0-evaluation")
     assert len(scene.pairs) >= 5
     gains = []
@@ -58,9 +60,9 @@ def test_every_pair_aligns_under_its_ground_truth(small_data):
 
 
 def test_fragment_poses_and_information_matrices(small_data):
-    scene = datasets.load_fragment_scene(small_data / "a" / "3dmatch" / "synth-room-0")
+    scene = threedmatch.load_fragment_scene(small_data / "a" / "3dmatch" / "synth-room-0")
     i, j = scene.pairs[0]
-    pose = lambda k: datasets.read_fragment_info(
+    pose = lambda k: threedmatch.read_fragment_info(
         scene.fragment_path(k).replace(".ply", ".info.txt"))[-1]
     np.testing.assert_allclose(np.linalg.inv(pose(i)) @ pose(j), scene.transforms[(i, j)],
                                atol=1e-6)
@@ -78,10 +80,10 @@ def test_shapes_and_object_frames(small_data):
     frames = root / "objects"
     labels = json.loads((frames / "frame-000000.labels.json").read_text())["instances"]
     assert labels and all(set(x) == {"id", "category", "box", "pose"} for x in labels)
-    k = datasets.read_intrinsics(frames / "camera-intrinsics.txt")
-    cloud = datasets.read_rgbd_frame(frames / "frame-000000.color.png",
+    k = rgbd.read_intrinsics(frames / "camera-intrinsics.txt")
+    cloud = rgbd.read_rgbd_frame(frames / "frame-000000.color.png",
                                      frames / "frame-000000.depth.png", k,
-                                     datasets.read_pose(frames / "frame-000000.pose.txt"))
+                                     rgbd.read_pose(frames / "frame-000000.pose.txt"))
     assert np.percentile(cloud.points[:, 2], 5) > -0.2              # above the floor
     import open3d as o3d
     mask = np.asarray(o3d.io.read_image(str(frames / "frame-000000.mask.png")))

@@ -5,13 +5,13 @@ import os
 
 import numpy as np
 
-from sphere_jax.data import datasets
+from sphere_jax.data.readers import threedmatch
 from sphere_jax.eval import scenes
 
 
 def kitchen(shared) -> scenes.PairSet:
     root = os.path.join(shared, "3dmatch", "7-scenes-redkitchen")
-    return scenes.fragment_scene(datasets.load_fragment_scene(root, root + "-evaluation"))
+    return scenes.fragment_scene(threedmatch.load_fragment_scene(root, root + "-evaluation"))
 
 
 def bunny(shared, voxel=0.001) -> scenes.PairSet:

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from configs import eval_objects
-from sphere_jax.data.washington import Sample
+from sphere_jax.data.readers.washington import Sample
 from sphere_jax.eval import objects
 
 

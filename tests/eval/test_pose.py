@@ -4,13 +4,14 @@ import os
 import numpy as np
 import pytest
 
-from sphere_jax.data import augment, datasets
+from sphere_jax.data import augment
+from sphere_jax.data.readers import rgbd
 from sphere_jax.eval import pose
 
 
 def _frame(root, n):
     stem = os.path.join(root, "rgbd-frames", f"frame-{n:06d}")
-    return datasets._read_image(stem + ".depth.png"), datasets.read_pose(stem + ".pose.txt")
+    return rgbd.read_image(stem + ".depth.png"), rgbd.read_pose(stem + ".pose.txt")
 
 
 @pytest.mark.parametrize("a,b,method", [(8, 28, "ransac"), (20, 50, "ransac"), (8, 28, "fgr")])
@@ -19,7 +20,7 @@ def test_recovers_planted_pose_on_real_frames(shared, a, b, method):
     rotation Q (about 60°); frame b sees it from elsewhere: object -> camera b is
     inv(P_b) P_a Q, which the pipeline must recover from b's depth alone."""
     root = os.path.join(shared, "rgbd", "3dmatch_toolbox")
-    k = datasets.read_intrinsics(os.path.join(root, "camera-intrinsics.txt"))
+    k = rgbd.read_intrinsics(os.path.join(root, "camera-intrinsics.txt"))
     (da, pa), (db, pb) = _frame(root, a), _frame(root, b)
     view = pose.crop_box(da, k, [200, 140, 440, 340]).points
     view = view[view[:, 2] < 3.0]

@@ -4,7 +4,9 @@ import os
 import numpy as np
 import pytest
 
-from sphere_jax.data import augment, datasets, synthetic
+from sphere_jax.data import augment
+from sphere_jax.data.generators import synthetic
+from sphere_jax.data.readers import rgbd
 from sphere_jax.eval import recognition, saliency
 
 
@@ -40,7 +42,7 @@ def test_consistency_grouping_finds_the_rigid_set_among_outliers():
 
 @pytest.fixture(scope="module")
 def frames():
-    return datasets.read_object_frames(os.path.join(synthetic.ensure_default_data(), "objects"))
+    return rgbd.read_object_frames(os.path.join(synthetic.ensure_default_data(), "objects"))
 
 
 def test_saliency_keeps_objects_and_drops_keypoints(frames):

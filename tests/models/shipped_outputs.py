@@ -11,10 +11,10 @@ import os
 import numpy as np
 
 import sphere_jax
+from sphere_jax import paths
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURE = os.path.join(HERE, "shipped_outputs.npz")
-CHECKPOINTS = os.path.join(os.path.dirname(os.path.dirname(HERE)), "checkpoints")
 RADIUS = 0.3
 
 
@@ -37,7 +37,7 @@ KEYPOINTS = np.array([10, 200, 3001, 3500, 4600, 4800, 5100, 5300])
 
 
 def bundle(name):
-    return os.path.join(CHECKPOINTS, name, "bundle")
+    return paths.shipped_bundle(name, required=True)
 
 
 def compute():

@@ -15,13 +15,17 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 
 import numpy as np
 import open3d as o3d
 from sklearn.neighbors import KDTree
 
-from sphere_jax.data import camera as cam
-from sphere_jax.data import datasets, io, patches, shapes
+from sphere_jax import paths
+from sphere_jax.data import patches
+from sphere_jax.data.generators import camera as cam
+from sphere_jax.data.generators import shapes, washington
+from sphere_jax.data.readers import io, rgbd, threedmatch
 
 # Categories that furnish the rooms (at furniture scale) and populate the table tops.
 ROOM_OBJECTS = ["cabinet", "table", "chair", "can", "ball", "ring", "blob", "lamp", "cone"]
@@ -118,7 +122,7 @@ def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, strid
     frames = []
     for pose in poses:
         depth, color, _ = scene.render(camera, pose, rng)
-        frames.append(datasets.depth_to_cloud(depth, camera.intrinsics, color, pose,
+        frames.append(rgbd.depth_to_cloud(depth, camera.intrinsics, color, pose,
                                               depth_scale=1.0))
     fragments, frag_poses = [], []
     starts = range(0, n_frames, stride)                       # the loop closes: wrap around
@@ -131,7 +135,7 @@ def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, strid
         local = (pts[keep] - a[:3, 3]) @ a[:3, :3]
         io.write_ply(os.path.join(frag_dir, f"cloud_bin_{k}.ply"), local, colors=cols[keep])
         info = f"{name}\t seq-01\t {s}\t {s + frames_per_fragment - 1}\t\n" + "\n".join(
-            datasets.format_matrix(a, "\t"))
+            threedmatch.format_matrix(a, "\t"))
         io.atomic_write(os.path.join(frag_dir, f"cloud_bin_{k}.info.txt"), (info + "\n").encode())
         fragments.append(local.astype(np.float32))
         frag_poses.append(a)
@@ -155,9 +159,9 @@ def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, strid
         ev = os.path.join(out_root, sub, name + "-evaluation")
         os.makedirs(ev, exist_ok=True)
         pick = {p: transforms[p] for p in transforms if lo < overlaps[p] <= hi}
-        datasets.write_gt_log(os.path.join(ev, "gt.log"), pick, n)
-        datasets.write_pair_blocks(os.path.join(ev, "gt.info"), {p: infos[p] for p in pick}, n)
-        datasets.write_gt_overlap(os.path.join(ev, "gt_overlap.log"),
+        threedmatch.write_gt_log(os.path.join(ev, "gt.log"), pick, n)
+        threedmatch.write_pair_blocks(os.path.join(ev, "gt.info"), {p: infos[p] for p in pick}, n)
+        threedmatch.write_gt_overlap(os.path.join(ev, "gt_overlap.log"),
                                   {p: overlaps[p] for p in pick})
     return {"name": name, "fragments": n, "pairs": len([p for p in overlaps
                                                          if overlaps[p] > 0.3]),
@@ -244,24 +248,17 @@ def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=cam.
                                "box": [int(uu.min()), int(vv.min()), int(uu.max()), int(vv.max())],
                                "pose": inst["pose"]})
             stem = os.path.join(out_dir, f"frame-{frame:06d}")
-            write_png(stem + ".color.png", color)
-            write_png(stem + ".depth.png", np.round(depth * 1000).astype(np.uint16))
-            write_png(stem + ".mask.png", mask)
+            rgbd.write_png(stem + ".color.png", color)
+            rgbd.write_png(stem + ".depth.png", np.round(depth * 1000).astype(np.uint16))
+            rgbd.write_png(stem + ".mask.png", mask)
             io.atomic_write(stem + ".pose.txt",
-                            ("\n".join(datasets.format_matrix(pose)) + "\n").encode())
+                            ("\n".join(threedmatch.format_matrix(pose)) + "\n").encode())
             io.atomic_write(stem + ".labels.json", json.dumps(
                 {"instances": labels}, indent=1).encode())
             frame += 1
     io.atomic_write(os.path.join(out_dir, "camera-intrinsics.txt"),
-                    ("\n".join(datasets.format_matrix(camera.intrinsics)) + "\n").encode())
+                    ("\n".join(threedmatch.format_matrix(camera.intrinsics)) + "\n").encode())
     return {"frames": frame}
-
-
-def write_png(path, array):
-    tmp = path + ".tmp.png"
-    if not o3d.io.write_image(tmp, o3d.geometry.Image(np.ascontiguousarray(array))):
-        raise OSError(f"could not write {path}")
-    os.replace(tmp, path)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -288,9 +285,7 @@ DATA_VERSION = 1
 
 def default_data_dir(seed=0):
     """Where the default synthetic data lives: ``$SPHERE_JAX_DATA`` or ``~/.cache/sphere_jax``."""
-    root = os.environ.get("SPHERE_JAX_DATA",
-                          os.path.join(os.path.expanduser("~"), ".cache", "sphere_jax"))
-    return os.path.join(root, f"synthetic-v{DATA_VERSION}-seed{seed}")
+    return os.path.join(paths.cache_root(), f"synthetic-v{DATA_VERSION}-seed{seed}")
 
 
 def ensure_default_data(seed=0, out_dir=None):
@@ -317,12 +312,10 @@ def ensure_default_objects(seed=0):
 
 def make_default_objects(data_dir, seed=0):
     """Write ``data_dir/washington`` (via a temporary folder renamed when complete)."""
-    from sphere_jax.data import washington
     out_dir = os.path.join(data_dir, "washington")
     tmp = f"{out_dir}.partial{os.getpid()}"
     summary = washington.make_synthetic(tmp, seed * 1000 + 303)
     if os.path.isdir(out_dir):
-        import shutil
         shutil.rmtree(out_dir)
     os.replace(tmp, out_dir)
     return summary

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 
+from sphere_jax.data.readers.io import Cloud, sample_mesh
+
 M = o3d.geometry.TriangleMesh
 
 
@@ -145,7 +147,6 @@ def make_object(name, rng):
 
 def sample_surface(mesh, n, rng):
     """``(points [n, 3], normals [n, 3])`` uniform on the mesh surface (area-weighted)."""
-    from sphere_jax.data.io import Cloud, sample_mesh
     cloud = Cloud(np.asarray(mesh.vertices, np.float32),
                   faces=np.asarray(mesh.triangles, np.int32))
     s = sample_mesh(cloud, n, rng)

@@ -1,6 +1,6 @@
 """A virtual RGB-D camera over open3d's ``RaycastingScene``, with a Kinect-like error model.
 
-Pinhole convention as :func:`sphere_jax.data.datasets.depth_to_cloud`: x right, y down, z
+Pinhole convention as :func:`sphere_jax.data.readers.rgbd.depth_to_cloud`: x right, y down, z
 forward; poses are camera-to-world. Depth error (Khoshelham & Elberink 2012; Nguyen et al.
 2012): axial noise σ(z) = 0.0012 + 0.0019 (z - 0.4)² m, disparity quantisation
 Δz ≈ z²/350 m, millimetre storage, dropouts at grazing incidence, out of range and at random.

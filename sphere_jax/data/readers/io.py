@@ -39,9 +39,22 @@ class Cloud:
         return Cloud(self.points[idx], pick(self.normals), pick(self.colors))
 
 
-def _check_exists(path):
+def check_exists(path):
     if not os.path.isfile(path):
         raise DataError(path, "no such file")
+
+
+def parse_numbers(path, line, no, count=None):
+    """The numbers of text ``line`` (number ``no``) of ``path``, space or comma separated;
+    :class:`DataError` naming the file and line when one is not a number or, with ``count``,
+    when there are not ``count`` of them."""
+    try:
+        vals = [float(t) for t in line.replace(",", " ").split()]
+    except ValueError:
+        raise DataError(path, f"non-numeric row {line.strip()!r}", no) from None
+    if count is not None and len(vals) != count:
+        raise DataError(path, f"expected {count} numbers, got {len(vals)}", no)
+    return vals
 
 
 def _finite_cloud(path, points, normals=None, colors=None, faces=None):
@@ -152,7 +165,7 @@ def read_ply(path) -> Cloud:
     """PLY point cloud or mesh: ``x y z`` (required), ``nx ny nz``, ``red green blue`` (uchar or
     float), faces from ``vertex_indices``/``vertex_index``. Other elements (e.g. the range
     grid of Stanford scans) are read past and ignored."""
-    _check_exists(path)
+    check_exists(path)
     with open(path, "rb") as f:
         fmt, elements, header_lines = _ply_header(path, f)
         body = f.read()
@@ -286,7 +299,7 @@ _PCD_TYPES = {("F", 4): "f4", ("F", 8): "f8", ("I", 1): "i1", ("I", 2): "i2", ("
 def read_pcd(path) -> Cloud:
     """PCL ``.pcd`` (DATA ascii or binary; binary_compressed through open3d): xyz, normals
     (``normal_x``...), packed ``rgb``/``rgba`` colours."""
-    _check_exists(path)
+    check_exists(path)
     with open(path, "rb") as f:
         raw = f.read()
     header, pos, line_no = {}, 0, 0
@@ -375,7 +388,7 @@ def _read_with_open3d(path) -> Cloud:
 def read_off(path) -> Cloud:
     """OFF mesh (vertices and triangulated faces). Accepts the broken ModelNet header where
     the counts follow 'OFF' on the same line (``OFF490 518 0``)."""
-    _check_exists(path)
+    check_exists(path)
     with open(path, "r", encoding="ascii", errors="replace") as f:
         lines = [ln.strip() for ln in f]
     rows = [(i + 1, ln) for i, ln in enumerate(lines) if ln and not ln.startswith("#")]
@@ -438,7 +451,7 @@ def sample_mesh(cloud: Cloud, n: int, rng: np.random.Generator) -> Cloud:
 
 def read_modelnet_txt(path) -> Cloud:
     """``modelnet40_normal_resampled`` shape: rows ``x,y,z,nx,ny,nz``."""
-    _check_exists(path)
+    check_exists(path)
     with open(path, "r", encoding="ascii", errors="replace") as f:
         lines = [ln for ln in f.read().splitlines() if ln.strip()]
     if not lines:
@@ -461,7 +474,7 @@ def read_modelnet_txt(path) -> Cloud:
 def read_modelnet_h5(path):
     """PointNet's ``ply_data_*.h5``: returns ``(points [B, N, 3] float32, labels [B] int64,
     normals or None)``. Needs h5py (``pip install h5py``)."""
-    _check_exists(path)
+    check_exists(path)
     try:
         import h5py
     except ImportError:

@@ -1,0 +1,68 @@
+"""Models suite: forward and training-step time of every config at its configured batch, and
+LEAD/SOUND description time per keypoint for 5000 keypoints of the 3DMatch kitchen fragment
+(when the real scans are present), with the fused inference path of
+:mod:`sphere_jax.spherical.fused` (the default) and layer by layer (``unfused``), with
+``describe_workers`` chunks of the config's ``infer_chunk`` keypoints run at a time
+(:func:`sphere_jax.api.run_chunked`). ``--only=lead`` keeps the configs whose name contains it."""
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import sys
+import time
+
+import jax
+import numpy as np
+import optax
+
+from experiments.benchmarks import common
+from sphere_jax import api, models, paths, training
+from sphere_jax.data import patches
+from sphere_jax.data.readers import io
+
+
+def run(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None, **_):
+    """Forward and training-step time per config and size; description ms per keypoint."""
+    records = []
+    shared = paths.real_data("3dmatch", "7-scenes-redkitchen", "cloud_bin_0.ply")
+    down = kp = None
+    if shared and os.path.isfile(shared):
+        down = patches.voxel_downsample(io.read_ply(shared).points, 0.02)
+        kp = patches.random_keypoints(down, keypoints, np.random.default_rng(0))
+    for name in ("compass", "lead", "lead_pn", "sound"):
+        if only and only not in name:
+            continue
+        for size in sizes:
+            config = importlib.import_module(f"configs.{name}").get_config(size)
+            model = models.build(config)
+            tx = optax.adam(config.train.learning_rate)
+            bs, n = config.train.batch_size, config.data.n_points
+            rng = np.random.default_rng(0)
+            p = (rng.normal(size=(bs, n, 3)) * 0.4).astype(np.float32)
+            batch = {"patches": p}
+            if models.spec(config.model).copies:
+                rots = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(bs)])
+                batch.update(copies=p, rotations=rots.astype(np.float32))
+            state = training.init_state(config, model, tx, batch)
+            step, _ = training.make_steps(config, model, tx)
+            variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
+            fwd = jax.jit(lambda v, x: model.apply(v, x, train=False))
+            fwd_ms = common.median_ms(lambda: fwd(variables, p), repeats)
+            step_ms = common.median_ms(lambda: step(state, batch)[1]["loss"], repeats)
+            rec = {"config": f"{name}:{size}", "batch": bs, "fwd_ms": round(fwd_ms, 1),
+                   "train_step_ms": round(step_ms, 1), "describe_ms_per_kp": "",
+                   "unfused_ms_per_kp": "", "describe_workers": ""}
+            # The models with a fused path that describe (LEAD, SOUND): fused vs layer by layer.
+            if (hasattr(model, "fused") and models.spec(config.model).describe is not None
+                    and down is not None):
+                for key, fused in (("describe_ms_per_kp", True), ("unfused_ms_per_kp", False)):
+                    bundle = api.Bundle(model.clone(fused=fused), variables, config)
+                    bundle.describe(down, kp[:256], radius=0.3)          # compile
+                    t0 = time.perf_counter()
+                    bundle.describe(down, kp, radius=0.3)
+                    rec[key] = round(1e3 * (time.perf_counter() - t0) / len(kp), 3)
+                rec["describe_workers"] = api.default_workers()     # chunks run at a time
+            records.append(rec)
+            print(json.dumps(rec), file=sys.stderr, flush=True)     # partial results survive
+    return records

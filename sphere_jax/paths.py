@@ -1,0 +1,53 @@
+"""Where things live, for the library, the configs, the benchmarks and the tests alike.
+
+* the **real scans** with ground truth: ``$SPHERE_JAX_REAL_DATA``, else ``../shared/data``
+  beside the checkout (:func:`real_data_root`, :func:`real_data`);
+* the **embedded synthetic data** cache: ``$SPHERE_JAX_DATA``, else ``~/.cache/sphere_jax``
+  (:func:`cache_root`; what goes in it is :mod:`sphere_jax.data.generators.synthetic`'s);
+* the **shipped bundles**: ``$SPHERE_JAX_CHECKPOINTS``, else the checkout's ``checkpoints/``
+  (:func:`shipped_bundle`).
+"""
+from __future__ import annotations
+
+import os
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def real_data_root():
+    """The folder of the real scans (it holds ``3dmatch/``), or None when there is none."""
+    for root in (os.environ.get("SPHERE_JAX_REAL_DATA"),
+                 os.path.join(REPO, "..", "shared", "data"),
+                 os.path.join(os.getcwd(), "..", "..", "shared", "data")):   # from notebooks/
+        if root and os.path.isdir(os.path.join(root, "3dmatch")):
+            return os.path.normpath(root)
+    return None
+
+
+def real_data(*parts):
+    """A path inside the real scans, or None when they are absent (the path itself may not
+    exist: callers check, as for any partial download)."""
+    root = real_data_root()
+    return os.path.join(root, *parts) if root else None
+
+
+def cache_root():
+    return os.environ.get("SPHERE_JAX_DATA",
+                          os.path.join(os.path.expanduser("~"), ".cache", "sphere_jax"))
+
+
+def checkpoints_root():
+    return os.path.normpath(os.environ.get("SPHERE_JAX_CHECKPOINTS")
+                            or os.path.join(REPO, "checkpoints"))
+
+
+def shipped_bundle(name, required=False):
+    """The folder of shipped bundle ``name`` (e.g. ``'sound_cpu'``); ``''`` when it is absent
+    (FileNotFoundError instead with ``required``)."""
+    path = os.path.join(checkpoints_root(), name, "bundle")
+    if os.path.isfile(os.path.join(path, "config.json")):
+        return path
+    if required:
+        raise FileNotFoundError(f"no shipped bundle {name!r} in {checkpoints_root()} (set "
+                                f"SPHERE_JAX_CHECKPOINTS to the repository's checkpoints/)")
+    return ""
