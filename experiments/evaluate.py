@@ -1,8 +1,10 @@
-"""Registration and LRF benchmarks:
-``python -m experiments.evaluate --config=eval_registration[:quick] [--workdir=DIR]``.
+"""Evaluations: ``python -m experiments.evaluate --config=eval_registration[:quick] [--workdir=DIR]``.
 
-``--config`` takes ``eval_registration`` or ``eval_lrf`` (optionally ``:quick``, ``:tiny``,
-``eval_lrf:stanford``) or a config file path; fields are overridden with ``--config.x=...``
+``--config`` takes an evaluation config — ``eval_registration``, ``eval_lrf``,
+``eval_classification``, ``eval_recognition``, ``eval_objects``, ``eval_pose`` (optionally
+``:quick``, ``:tiny``, ``eval_lrf:stanford``, ``eval_classification:cpu``) — or a config file
+path; its ``task`` chooses the plug-in of :mod:`sphere_jax.eval.tasks`. Fields are overridden
+with ``--config.x=...``
 (``--config.methods=fpfh,shot,sound``, ``--config.bundle=runs/sound_cpu/bundle``,
 ``--config.data.root=DIR``, ``--config.rotate=True``). Tables are printed and written with the
 CSV and plots to the workdir (default ``runs/<config name>``).
@@ -13,27 +15,26 @@ import os
 import sys
 import time
 
-from absl import app, flags
+from absl import app, flags, logging
 from ml_collections import config_flags
 
 from configs import resolve_config_arg
+from sphere_jax.eval import tasks
 
 config_flags.DEFINE_config_file("config", None, "evaluation config (name[:arg] or path)")
 flags.DEFINE_string("workdir", None, "where the tables and plots go")
 
 
 def main(_):
-    from absl import logging
     logging.set_verbosity(logging.WARNING)
-    from sphere_jax.eval import benchmark
     config = flags.FLAGS.config
     if config is None:
         raise app.UsageError("--config is required, e.g. --config=eval_registration:quick")
-    suffix = ("_rotated" if config.rotate else "") + (
+    suffix = ("_rotated" if config.get("rotate") else "") + (
         "" if config.size == "full" else f"_{config.size}")
     workdir = flags.FLAGS.workdir or os.path.join("runs", f"eval_{config.task}{suffix}")
     start = time.perf_counter()
-    _, md = benchmark.run(config, workdir)
+    _, md = tasks.run(config, workdir)
     print(md)
     print(f"written to {workdir} in {time.perf_counter() - start:.0f} s")
 

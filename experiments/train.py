@@ -9,10 +9,11 @@ from __future__ import annotations
 import os
 import sys
 
-from absl import app, flags
+from absl import app, flags, logging
 from ml_collections import config_flags
 
 from configs import resolve_config_arg
+from sphere_jax import training
 
 config_flags.DEFINE_config_file("config", None, "experiment config (name, name:size or path)")
 flags.DEFINE_string("workdir", None, "where checkpoints, metrics and the bundle go "
@@ -20,19 +21,11 @@ flags.DEFINE_string("workdir", None, "where checkpoints, metrics and the bundle 
 
 
 def main(_):
-    from absl import logging
     logging.set_verbosity(logging.WARNING)          # orbax logs every save at INFO
-    from sphere_jax import training
     config = flags.FLAGS.config
     if config is None:
         raise app.UsageError("--config is required, e.g. --config=sound:cpu")
     workdir = flags.FLAGS.workdir or os.path.join("runs", f"{config.model}_{config.size}")
-    if config.model == "classify" and config.get("methods"):
-        from sphere_jax.eval import classification
-        _, md = classification.run(config, workdir)      # trains every method, scores NR/AR
-        print(md)
-        print(f"finished in {workdir}")
-        return
     _, last = training.train_and_evaluate(config, workdir)
     print(f"finished in {workdir}: " + ", ".join(f"{k}={v:.4g}" for k, v in last.items()
                                                   if isinstance(v, float)))

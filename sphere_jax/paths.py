@@ -15,10 +15,15 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def real_data_root():
-    """The folder of the real scans (it holds ``3dmatch/``), or None when there is none."""
-    for root in (os.environ.get("SPHERE_JAX_REAL_DATA"),
-                 os.path.join(REPO, "..", "shared", "data"),
-                 os.path.join(os.getcwd(), "..", "..", "shared", "data")):   # from notebooks/
+    """The folder of the real scans (it holds ``3dmatch/``), or None when there is none.
+    A set ``$SPHERE_JAX_REAL_DATA`` is the only place looked at: empty, it stands for a fresh
+    clone without the scans (how the tests' embedded fallbacks are checked)."""
+    if "SPHERE_JAX_REAL_DATA" in os.environ:
+        candidates = (os.environ["SPHERE_JAX_REAL_DATA"],)
+    else:
+        candidates = (os.path.join(REPO, "..", "shared", "data"),
+                      os.path.join(os.getcwd(), "..", "..", "shared", "data"))  # notebooks/
+    for root in candidates:
         if root and os.path.isdir(os.path.join(root, "3dmatch")):
             return os.path.normpath(root)
     return None

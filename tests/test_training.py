@@ -8,7 +8,7 @@ import pytest
 from configs import classify, compass, lead, lead_pn, sound
 from sphere_jax import models, training
 from sphere_jax.data.generators import synthetic
-from tests.data.test_synthetic import SMALL
+from tests.data.generators.test_synthetic import SMALL
 
 CONFIGS = {"compass": compass, "lead": lead, "lead_pn": lead_pn, "sound": sound,
            "classify": classify}

@@ -12,7 +12,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 
-def _check_cloud(points, name="points"):
+def check_cloud(points, name="points"):
     points = np.asarray(points)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{name} must be [N, 3], got {points.shape}")
@@ -28,7 +28,7 @@ def voxel_downsample(points, voxel, return_index=False):
     """One point per occupied voxel of side ``voxel``: the centroid of the voxel's points
     (``return_index=True``: the index of the point nearest that centroid instead, so
     colours/normals can follow)."""
-    points = _check_cloud(points)
+    points = check_cloud(points)
     if not voxel > 0:
         raise ValueError(f"voxel must be > 0, got {voxel}")
     cells = np.floor((points - points.min(0)) / voxel).astype(np.int64)
@@ -55,7 +55,7 @@ def uniform_keypoints(points, leaf):
 
 def random_keypoints(points, n, rng: np.random.Generator):
     """``n`` distinct random indices (all of them if the cloud is smaller)."""
-    points = _check_cloud(points)
+    points = check_cloud(points)
     return np.sort(rng.choice(len(points), size=min(n, len(points)), replace=False))
 
 
@@ -64,7 +64,7 @@ def iss_keypoints(points, salient_radius=0.0, non_max_radius=0.0, gamma_21=0.975
     """Intrinsic Shape Signature keypoints (open3d); radii 0 let open3d pick from resolution.
     Returns indices into ``points``."""
     import open3d as o3d
-    points = _check_cloud(points)
+    points = check_cloud(points)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
     kp = o3d.geometry.keypoint.compute_iss_keypoints(pcd, salient_radius, non_max_radius,
                                                      gamma_21, gamma_32, min_neighbors)
@@ -90,7 +90,7 @@ def extract_patches(points, keypoints, radius, n_points, rng: np.random.Generato
     each keypoint (indices into ``points``), the keypoint excluded. Keypoints with fewer than
     ``min_points`` neighbours are dropped (the seed skips supports under 300 points); the
     result says which were kept."""
-    points = _check_cloud(points)
+    points = check_cloud(points)
     keypoints = np.asarray(keypoints, np.int64).reshape(-1)
     if len(keypoints) and (keypoints.min() < 0 or keypoints.max() >= len(points)):
         raise ValueError(f"keypoints must index points (0..{len(points) - 1})")

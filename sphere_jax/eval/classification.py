@@ -1,7 +1,8 @@
 """Rotation-invariant classification (thesis 3.3): plain PointNet vs Compass + PointNet,
 tested in canonical pose (NR) and under arbitrary rotations (AR).
 
-``run(config, workdir)`` trains one PointNet per method of ``config.methods`` (in
+The ``classification`` task (``configs/eval_classification.py``): ``run(config, workdir)``
+trains one PointNet per method of ``config.methods`` (in
 ``workdir/<method>``; Compass-oriented shapes for ``compass+pointnet``), then scores each on
 the whole test split, as is and with every shape turned by a seeded random rotation.
 """
@@ -14,8 +15,8 @@ import ml_collections
 import numpy as np
 
 from sphere_jax import api, training
+from sphere_jax import bundle as bundle_files
 from sphere_jax.data import augment
-from sphere_jax.data.readers.io import atomic_write
 from sphere_jax.eval import report
 
 METHODS = ("pointnet", "compass+pointnet")
@@ -50,7 +51,7 @@ def method_config(config, method):
     if method not in METHODS:
         raise ValueError(f"classification method must be one of {METHODS}, got {method!r}")
     c.orient_bundle = config.compass_bundle if method == "compass+pointnet" else ""
-    if c.orient_bundle and not os.path.isfile(os.path.join(c.orient_bundle, "config.json")):
+    if method == "compass+pointnet" and not bundle_files.is_bundle(c.orient_bundle):
         raise FileNotFoundError(
             f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
             f"python -m experiments.train --config=compass_shapes:cpu")
@@ -73,12 +74,6 @@ def run(config, workdir, progress=True):
         for split, x in (("NR", pts), ("AR", rotated.astype(np.float32))):
             rows.append({"method": method, "split": split,
                          "accuracy": accuracy(bundle, x, labels, orient)})
-    os.makedirs(workdir, exist_ok=True)
-    atomic_write(os.path.join(workdir, "classification.csv"),
-                 report.to_csv(rows, ("method", "split", "accuracy")).encode())
-    methods = list(dict.fromkeys(r["method"] for r in rows))
-    acc = {(r["method"], r["split"]): r["accuracy"] for r in rows}
-    md = "\n".join(["| method | NR | AR |", "|---|---|---|"] + [
-        f"| {m} | {acc[(m, 'NR')]:.3f} | {acc[(m, 'AR')]:.3f} |" for m in methods]) + "\n"
-    atomic_write(os.path.join(workdir, "classification.md"), md.encode())
-    return rows, md
+    md = report.pivot_table(rows, "method", "split", "accuracy", cols=("NR", "AR")) + "\n"
+    return rows, report.write(workdir, "classification", rows, ("method", "split", "accuracy"),
+                              md)

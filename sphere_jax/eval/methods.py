@@ -20,8 +20,12 @@ it), ``shot``, ``toldi``, ``compass`` and ``sound`` (its Compass branch).
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
+from sphere_jax import api
+from sphere_jax import bundle as bundle_files
 from sphere_jax.eval import descriptors, lrfs
 from sphere_jax.eval.neighbourhood import radius_neighbourhoods
 from sphere_jax.eval.scenes import Fragment
@@ -35,7 +39,6 @@ FLARE_POINTS = 1225
 
 
 def _bundle(path):
-    from sphere_jax import api
     return api.cached_bundle(path)
 
 
@@ -99,8 +102,6 @@ def lrf(name, radius, bundles=None, chunk=None):
     if name not in LRFS:
         raise ValueError(f"unknown LRF {name!r}; choose from {', '.join(LRFS)}")
     if name == "flare":
-        from sphere_jax import api
-
         def orient(f, idx):
             p = api.extract_unit_patches(f.points, idx, radius, FLARE_POINTS)
             return api.run_chunked(api.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
@@ -113,3 +114,30 @@ def lrf(name, radius, bundles=None, chunk=None):
         raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
     model = _bundle(bundles[name])
     return lambda f, idx: np.asarray(model.orient(f.points, idx, radius=radius, chunk=chunk))
+
+
+# ---- choice from an evaluation config ----------------------------------------------------------
+
+def bundle_paths(config):
+    """Kind -> bundle path: the config's defaults, ``config.bundle`` replacing its kind's."""
+    paths = dict(config.bundles.to_dict())
+    if config.bundle:
+        if not bundle_files.is_bundle(config.bundle):
+            raise FileNotFoundError(f"bundle={config.bundle!r} is not a bundle (no config.json)")
+        paths[bundle_files.read_config(config.bundle).model] = config.bundle
+    return paths
+
+
+def chosen_methods(config, known, bundles):
+    names = [m.strip() for m in config.methods.split(",") if m.strip()]
+    bad = [m for m in names if m not in known]
+    if bad:
+        raise ValueError(f"methods {bad} unknown; choose from {', '.join(known)}")
+    missing = bundles_needed(names, bundles)
+    for m in missing:
+        warnings.warn(f"method {m!r} skipped: no bundle for {BUNDLE_OF[m]} "
+                      f"(set --config.bundle or --config.bundles.<kind>)", stacklevel=2)
+    names = [m for m in names if m not in missing]
+    if not names:
+        raise ValueError("no method left to evaluate")
+    return names

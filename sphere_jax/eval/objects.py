@@ -13,13 +13,17 @@ split and fed to six classifiers. Protocols of the Washington RGB-D Object bench
 """
 from __future__ import annotations
 
-import os
+import warnings
 from typing import Callable
 
 import numpy as np
 from tqdm.auto import tqdm
 
+from sphere_jax import api
+from sphere_jax.data.generators import synthetic
+from sphere_jax.data.readers import washington
 from sphere_jax.data.readers.washington import Sample
+from sphere_jax.eval import report
 
 PROTOCOLS = ("category", "instance_lso", "instance_acf")
 FEATURE_SETS = ("colour", "shape", "colour+shape")
@@ -133,38 +137,25 @@ def markdown(rows):
     parts = []
     for protocol in dict.fromkeys(r["protocol"] for r in rows):
         mine = [r for r in rows if r["protocol"] == protocol]
-        fsets = list(dict.fromkeys(r["features"] for r in mine))
-        cell = {(r["classifier"], r["features"]): r["accuracy"] for r in mine}
-        parts += [f"**{protocol}** (accuracy)", "", "| classifier | " + " | ".join(fsets) + " |",
-                  "|---" * (len(fsets) + 1) + "|"]
-        for c in dict.fromkeys(r["classifier"] for r in mine):
-            parts.append(f"| {c} | " + " | ".join(f"{cell[(c, f)]:.3f}" for f in fsets) + " |")
-        parts.append("")
+        parts += [f"**{protocol}** (accuracy)", "",
+                  report.pivot_table(mine, "classifier", "features", "accuracy"), ""]
     return "\n".join(parts)
 
 
 def run(config, workdir, progress=True):
     """The colour + shape benchmark of ``configs/eval_objects.py``: objects.csv / objects.md."""
-    from sphere_jax import api
-    from sphere_jax.data import washington
-    from sphere_jax.data.generators import synthetic
-    from sphere_jax.eval import report
     root = config.data.root or synthetic.ensure_default_objects(config.seed)
     cats = [c.strip() for c in config.data.categories.split(",") if c.strip()] or None
     samples = washington.read_dataset(root, cats)
     shape = shape_feature(api.load_bundle(config.bundle)) if config.bundle else None
     if shape is None:
-        import warnings
         warnings.warn("no descriptor bundle: colour features only", stacklevel=2)
     feats = features(samples, hsv_histogram, shape, progress)
     rows = evaluate(samples, feats, [p.strip() for p in config.protocols.split(",")],
                     [c.strip() for c in config.classifiers.split(",")], config.trials,
                     config.block, config.seed, progress)
-    os.makedirs(workdir, exist_ok=True)
-    columns = ("protocol", "features", "classifier", "accuracy")
-    report.atomic_write(os.path.join(workdir, "objects.csv"),
-                        report.to_csv(rows, columns).encode())
     md = (f"# Colour + shape recognition ({len(samples)} crops, "
           f"{len({s.instance for s in samples})} instances)\n\n" + markdown(rows))
-    report.atomic_write(os.path.join(workdir, "objects.md"), md.encode())
+    report.write(workdir, "objects", rows, ("protocol", "features", "classifier", "accuracy"),
+                 md)
     return rows, md

@@ -13,9 +13,17 @@ import time
 from typing import Callable, Sequence
 
 import numpy as np
+from scipy.spatial import cKDTree
+from sklearn.linear_model import LogisticRegression
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from tqdm.auto import tqdm
 
 from sphere_jax.data import patches
+from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
+from sphere_jax.eval import labelled, registration, report
+from sphere_jax.eval.objects import hsv_histogram
 
 
 @dataclasses.dataclass
@@ -146,23 +154,11 @@ def estimate_pose(depth, intrinsics, box, models: Sequence[ObjectModel], voxel=0
                       float(fine.inlier_rmse), seconds)
 
 
-def project_box(points_cam, intrinsics, margin=0):
-    """Pixel box ``[u0, v0, u1, v1]`` of camera-frame points (in front of the camera)."""
-    p = np.asarray(points_cam, np.float64)
-    p = p[p[:, 2] > 0]
-    k = np.asarray(intrinsics, np.float64)
-    u = k[0, 0] * p[:, 0] / p[:, 2] + k[0, 2]
-    v = k[1, 1] * p[:, 1] / p[:, 2] + k[1, 2]
-    return [u.min() - margin, v.min() - margin, u.max() + margin, v.max() + margin]
-
-
 def pose_errors(t_est, t_gt, model_points=None):
     """Rotation error (deg), translation error (m) and, with model points, ADD-S (mean
     distance from each estimated model point to the nearest ground-truth one: symmetric
     objects are not penalised for an equivalent pose)."""
-    from scipy.spatial import cKDTree
-    from sphere_jax.eval.registration import rre_rte
-    rre, rte = rre_rte(t_est, t_gt)
+    rre, rte = registration.rre_rte(t_est, t_gt)
     if model_points is None:
         return rre, rte
     a = model_points @ t_est[:3, :3].T + t_est[:3, 3]
@@ -175,16 +171,11 @@ def pose_errors(t_est, t_gt, model_points=None):
 def colour_classifier(model_frames, seed=0):
     """``classify(points, color_crop) -> instance`` from the HSV histograms of the instances
     in the model frames (logistic regression): the pipeline's 'classify' stage."""
-    from sklearn.linear_model import LogisticRegression
-    from sklearn.pipeline import make_pipeline
-    from sklearn.preprocessing import StandardScaler
-    from sphere_jax.eval.objects import hsv_histogram
-    from sphere_jax.eval.recognition import instance_label
     x, y = [], []
     for fr in model_frames:
         for inst in fr.instances:
             x.append(hsv_histogram(fr.color, fr.mask == inst["id"]))
-            y.append(instance_label(inst))
+            y.append(labelled.instance_label(inst))
     model = make_pipeline(StandardScaler(), LogisticRegression(max_iter=5000)).fit(x, y)
 
     def classify(points, color_crop):
@@ -195,17 +186,13 @@ def colour_classifier(model_frames, seed=0):
 def run(config, workdir, progress=True):
     """Pose benchmark of ``configs/eval_pose.py`` on labelled RGB-D frames: every visible
     instance of every test frame, from its ground-truth box. Writes pose.csv / pose.md."""
-    from tqdm.auto import tqdm
-    from sphere_jax.data.generators import synthetic
-    from sphere_jax.data.readers.rgbd import read_object_frames
-    from sphere_jax.eval import recognition, report
     root = config.data.root or os.path.join(synthetic.ensure_default_data(config.seed),
                                             "objects")
-    model_frames, test_frames = recognition.split_frames(read_object_frames(root),
+    model_frames, test_frames = labelled.split_frames(rgbd.read_object_frames(root),
                                                          config.model_views)
     if config.data.max_frames:
         test_frames = test_frames[:config.data.max_frames]
-    views = recognition.build_database(model_frames, 0.03, config.data.voxel / 2)
+    views = labelled.build_database(model_frames, 0.03, config.data.voxel / 2)
     models = {}
     for v in views:
         models.setdefault(v.label, ObjectModel(v.label, v.label, []))
@@ -216,7 +203,7 @@ def run(config, workdir, progress=True):
         per = []
         for fr in tqdm(test_frames, desc=f"pose {method}", disable=not progress):
             for inst in fr.instances:
-                label = recognition.instance_label(inst)
+                label = labelled.instance_label(inst)
                 if label not in models:
                     continue
                 masked = np.where((fr.mask == inst["id"])[..., None], fr.color, 0)
@@ -225,7 +212,7 @@ def run(config, workdir, progress=True):
                 res = estimate_pose(depth, fr.intrinsics, inst["box"], list(models.values()),
                                     config.data.voxel, classify, masked, method,
                                     seed=config.seed)
-                t_gt = recognition.object_to_camera(fr, inst)
+                t_gt = labelled.object_to_camera(fr, inst)
                 model_pts = np.concatenate(models[label].views)[::5]
                 rre, rte, adds = pose_errors(res.transform, t_gt, model_pts)
                 extent = np.linalg.norm(model_pts.max(0) - model_pts.min(0))
@@ -242,14 +229,7 @@ def run(config, workdir, progress=True):
                      "fitness": mean("fitness"), "rmse_m": mean("rmse_m"),
                      **{f"{s}_s": mean(s) for s in stages}, "total_s": total,
                      "fps": 1.0 / total if total > 0 else float("nan")})
-    os.makedirs(workdir, exist_ok=True)
     columns = tuple(rows[0])
-    report.atomic_write(os.path.join(workdir, "pose.csv"), report.to_csv(rows, columns).encode())
-    lines = [f"# Pose pipeline ({len(test_frames)} test frames)", "",
-             "| " + " | ".join(columns) + " |", "|---" * len(columns) + "|"]
-    for r in rows:
-        lines.append("| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v)
-                                       for v in r.values()) + " |")
-    md = "\n".join(lines) + "\n"
-    report.atomic_write(os.path.join(workdir, "pose.md"), md.encode())
+    md = f"# Pose pipeline ({len(test_frames)} test frames)\n\n{report.table(rows, columns)}\n"
+    report.write(workdir, "pose", rows, columns, md)
     return rows, md

@@ -16,14 +16,18 @@ import time
 from typing import Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
-from sklearn.neighbors import KDTree
+from tqdm.auto import tqdm
 
 from sphere_jax.data import patches
+from sphere_jax.data.generators import synthetic
+from sphere_jax.data.readers import rgbd
 from sphere_jax.data.readers.rgbd import ObjectFrame
-from sphere_jax.eval.neighbourhood import estimate_normals
-from sphere_jax.eval.pose import project_box
-from sphere_jax.eval.scenes import Fragment, transform
+from sphere_jax.eval import methods as method_lib
+from sphere_jax.eval import report
+from sphere_jax.eval.labelled import (ModelView, build_database, instance_label, kabsch,
+                                      make_fragment, project_box, split_frames, unit_rows)
+from sphere_jax.eval.saliency import salient_mask, spectral_residual
+from sphere_jax.eval.scenes import transform
 
 IOU_OK = 0.25
 
@@ -91,95 +95,9 @@ def consistency_groups(model_pts, scene_pts, resolution, min_size=3):
     return sorted(groups, key=len, reverse=True)
 
 
-def kabsch(src, dst):
-    """Rigid ``T`` minimising ``‖T src − dst‖`` (rows correspond)."""
-    cs, cd = src.mean(0), dst.mean(0)
-    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    r = vt.T @ np.diag([1, 1, d]) @ u.T
-    t = np.eye(4)
-    t[:3, :3], t[:3, 3] = r, cd - r @ cs
-    return t
-
-
 # ---- database and scenes -------------------------------------------------------------------------
 
-@dataclasses.dataclass
-class ModelView:
-    label: str                      # instance
-    category: str
-    points: np.ndarray              # object frame
-    fragment: Fragment
-    descriptors: np.ndarray = None
-    tree: cKDTree = None            # over the descriptors, built once for every test frame
-
-    def set_descriptors(self, desc_KxD):
-        self.descriptors = unit_rows(desc_KxD)
-        self.tree = cKDTree(self.descriptors)
-
-
-def instance_label(inst):
-    """Instances are identified across frames by category and placement (the same object in
-    the same scene keeps its pose)."""
-    return f"{inst['category']}@{np.round(np.asarray(inst['pose'])[:3, 3], 3).tolist()}"
-
-
-def object_to_camera(frame: ObjectFrame, inst):
-    """The instance's pose in the frame's camera, its scale removed (labels hold rotation ×
-    scale)."""
-    obj = np.array(inst["pose"], np.float64)
-    obj[:3, :3] /= np.linalg.norm(obj[:3, :3], axis=0, keepdims=True)
-    return np.linalg.inv(frame.pose) @ obj
-
-
-def make_fragment(points, leaf, voxel, normal_k=17, viewpoint=(0, 0, 0), key=None):
-    pts = patches.voxel_downsample(points, voxel)
-    return Fragment(key, pts, estimate_normals(pts, normal_k, viewpoint),
-                    patches.uniform_keypoints(pts, leaf), KDTree(pts))
-
-
-def build_database(frames: list[ObjectFrame], leaf, voxel, min_points=200):
-    """One model view per labelled instance of each model frame, in the object's frame."""
-    views = []
-    for fr in frames:
-        pts, px = fr.points()
-        ids = fr.mask[px[:, 0], px[:, 1]]
-        for inst in fr.instances:
-            sel = ids == inst["id"]
-            if sel.sum() < min_points:
-                continue
-            cam_to_obj = np.linalg.inv(object_to_camera(fr, inst))
-            p = transform(pts[sel], cam_to_obj).astype(np.float32)
-            frag = make_fragment(p, leaf, voxel, viewpoint=cam_to_obj[:3, 3],
-                                 key=(fr.name, inst["id"]))
-            views.append(ModelView(instance_label(inst), inst["category"], p, frag))
-    return views
-
-
-def split_frames(frames: list[ObjectFrame], model_views_per_scene=2):
-    """The first views of every scene build the database, the rest are test frames."""
-    scenes = {}
-    for fr in frames:
-        key = tuple(sorted(instance_label(i) for i in fr.instances))
-        # Frames of one scene share their objects' poses; group by any shared instance.
-        home = next((k for k in scenes if set(k) & set(key)), key)
-        scenes.setdefault(home, []).append(fr)
-    model, test = [], []
-    for group in scenes.values():
-        model += group[:model_views_per_scene]
-        test += group[model_views_per_scene:]
-    return model, test
-
-
 # ---- recognition -------------------------------------------------------------------------------
-
-def unit_rows(desc_KxD):
-    """Descriptors scaled to unit length, so one distance threshold serves every method (the
-    hand-crafted ones already are; learned ones are not)."""
-    d = np.asarray(desc_KxD, np.float32)
-    n = np.linalg.norm(d, axis=1, keepdims=True)
-    return d / np.where(n > 0, n, 1.0)
-
 
 @dataclasses.dataclass
 class Detection:
@@ -197,7 +115,6 @@ def recognise(frame: ObjectFrame, database: list[ModelView], describe: Callable,
     """Detections in one frame and ``(seconds per stage, number of keypoints)``. Per model
     view only the ``max_correspondences`` closest matches are grouped (grouping is quadratic
     in their number)."""
-    from sphere_jax.eval.saliency import salient_mask
     seconds = {}
     pts, px = frame.points()
     near = pts[:, 2] <= max_depth
@@ -259,7 +176,6 @@ def evaluate(test_frames, database, describers: dict, leaf, voxel, match_thresho
              keypoints="uniform", max_depth=np.inf, progress=True):
     """Rows ``{method, boost, auc, keypoints, <stage>_s, total_s}`` plain and boosted, and the
     PR curves ``{(method, boost): (precision, recall)}``."""
-    from tqdm.auto import tqdm
     by_name = {f.name: f for f in test_frames}
     rows, curves = [], {}
     for name, describe in describers.items():
@@ -290,10 +206,6 @@ def evaluate(test_frames, database, describers: dict, leaf, voxel, match_thresho
 def run(config, workdir, progress=True):
     """Saliency Boost benchmark of ``configs/eval_recognition.py``: recognition.csv / .md,
     pr_curves.png and time_vs_auc.png."""
-    from sphere_jax.data.generators import synthetic
-    from sphere_jax.data.readers import rgbd
-    from sphere_jax.eval import methods as method_lib, report, saliency as saliency_lib
-    from sphere_jax.eval.benchmark import bundle_paths, chosen_methods
     d = config.data
     root = d.root or os.path.join(synthetic.ensure_default_data(config.seed), "objects")
     frames = rgbd.read_object_frames(root)
@@ -301,29 +213,22 @@ def run(config, workdir, progress=True):
     if d.max_frames:
         test_frames = test_frames[:d.max_frames]
     database = build_database(model_frames, config.leaf, d.voxel)
-    bundles = bundle_paths(config)
-    names = chosen_methods(config, method_lib.DESCRIPTORS, bundles)
+    bundles = method_lib.bundle_paths(config)
+    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
     describers = {m: method_lib.descriptor(m, d.radius, bundles, d.radius / 2, config.chunk)
                   for m in names}
     rows, curves = evaluate(test_frames, database, describers, config.leaf, d.voxel,
                             config.match_threshold, config.gc_resolution, config.min_group,
-                            saliency_lib.spectral_residual, config.saliency_factor,
+                            spectral_residual, config.saliency_factor,
                             config.keypoints, config.max_depth, progress)
-    os.makedirs(workdir, exist_ok=True)
     columns = ("method", "boost", "auc", "detections", "correct", "ground_truth", "keypoints",
                *[f"{s}_s" for s in STAGES], "total_s")
-    report.atomic_write(os.path.join(workdir, "recognition.csv"),
-                        report.to_csv(rows, columns).encode())
-    lines = [f"# Recognition with Saliency Boost ({len(test_frames)} test frames, "
-             f"{len(database)} model views)", "",
-             "| method | AUC | keypoints | " + " | ".join(f"{s} (s)" for s in STAGES)
-             + " | total (s) |", "|---" * (4 + len(STAGES)) + "|"]
-    for r in rows:
-        lines.append(f"| {r['method']}{' + Saliency Boost' if r['boost'] else ''} | "
-                     f"{r['auc']:.3f} | {r['keypoints']:.0f} | "
-                     + " | ".join(f"{r[f'{s}_s']:.3f}" for s in STAGES)
-                     + f" | {r['total_s']:.3f} |")
-    md = "\n".join(lines) + "\n"
-    report.atomic_write(os.path.join(workdir, "recognition.md"), md.encode())
+    shown = [{**r, "method": r["method"] + (" + Saliency Boost" if r["boost"] else ""),
+              "keypoints": f"{r['keypoints']:.0f}"} for r in rows]
+    keys = ("method", "auc", "keypoints", *[f"{s}_s" for s in STAGES], "total_s")
+    headers = ("method", "AUC", "keypoints", *[f"{s} (s)" for s in STAGES], "total (s)")
+    md = (f"# Recognition with Saliency Boost ({len(test_frames)} test frames, "
+          f"{len(database)} model views)\n\n{report.table(shown, keys, headers)}\n")
+    report.write(workdir, "recognition", rows, columns, md)
     report.plot_recognition(rows, curves, workdir)
     return rows, md

@@ -15,6 +15,7 @@ RRE / RTE averaged over the registered pairs (over all pairs they would only mea
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from typing import Callable
 
@@ -22,8 +23,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
-from sphere_jax.spherical import so3
+from sphere_jax.eval import methods as method_lib
+from sphere_jax.eval import report
 from sphere_jax.eval import scenes as scene_lib
+from sphere_jax.spherical import so3
 
 TAU1, TAU2 = 0.10, 0.05
 RRE_OK_DEG, RTE_OK_M = 15.0, 0.30
@@ -152,3 +155,30 @@ def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
         out[method] = [float(np.mean([feature_match_recall(r.pairs, tau1, t2)
                                       for r in per_scene])) for t2 in tau2_values]
     return out
+
+
+# ---- the task ------------------------------------------------------------------------------------
+
+def run(config, workdir, progress=True):
+    """Descriptor benchmark: returns ``(rows, markdown)``; writes results.{csv,md} and
+    fmr_vs_tau2.png in ``workdir``."""
+    bundles = method_lib.bundle_paths(config)
+    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
+    describers = {m: method_lib.descriptor(m, config.data.radius, bundles, config.fpfh_radius,
+                                           config.chunk) for m in names}
+    results = []
+    for s in scene_lib.pair_sets(config):
+        results += evaluate_scene(
+            s, describers, scene_lib.prepare_kwargs(config), config.tau1, config.tau2,
+            config.ransac_distance, config.ransac_iterations, config.seed, progress)
+    rows = [dict(method=r.method, scene=r.scene, ms_per_keypoint=r.ms_per_keypoint,
+                 **r.summary) for r in results]
+    os.makedirs(workdir, exist_ok=True)
+    variant = " (rotated)" if config.rotate else ""
+    md = report.write_tables(workdir, rows, report.REGISTRATION_COLUMNS,
+                             report.REGISTRATION_TABLES, "results",
+                             f"Registration benchmark{variant}")
+    curve = fmr_curve(results, config.tau2_curve, config.tau1)
+    report.plot_fmr_curve(curve, config.tau2_curve, os.path.join(workdir, "fmr_vs_tau2.png"),
+                          f"Feature-match recall vs τ2{variant}")
+    return rows, md

@@ -9,13 +9,17 @@ two frames. A frame a method could not compute (NaN) counts as not repeatable.
 from __future__ import annotations
 
 import dataclasses
+import os
 from typing import Callable
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax.spherical import so3
+from sphere_jax import api, training
+from sphere_jax.eval import methods as method_lib
+from sphere_jax.eval import report
 from sphere_jax.eval import scenes as scene_lib
+from sphere_jax.spherical import so3
 
 RHO = 0.97
 
@@ -97,3 +101,48 @@ def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
                                  {"pairs": len(valid), "rep": mean("rep"),
                                   "mean_angle_deg": mean("mean_angle_deg")}))
     return results
+
+
+# ---- the task ------------------------------------------------------------------------------------
+
+def adapted_bundles(config, bundles, names, workdir, progress):
+    """Test-time adaptation of the learned LRF bundles on the evaluation scans."""
+    out = dict(bundles)
+    for kind in ("compass", "sound"):
+        if kind in names:
+            out[kind], _ = training.adapt(api.load_bundle(bundles[kind]), scene_lib.data_root(config),
+                                          config.adapt_steps,
+                                          os.path.join(workdir, f"adapted_{kind}"),
+                                          progress=progress)
+    return out
+
+
+def run(config, workdir, progress=True):
+    """LRF repeatability benchmark: returns ``(rows, markdown)``; writes lrf_results.{csv,md}
+    and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir``."""
+    bundles = method_lib.bundle_paths(config)
+    names = method_lib.chosen_methods(config, method_lib.LRFS, bundles)
+    os.makedirs(workdir, exist_ok=True)
+    if config.adapt_steps:
+        bundles = adapted_bundles(config, bundles, names, workdir, progress)
+    orienters = {m: method_lib.lrf(m, config.data.radius, bundles, config.chunk) for m in names}
+    results, plot_dir = [], os.path.join(workdir, "plots")
+    os.makedirs(plot_dir, exist_ok=True)
+    for s in scene_lib.pair_sets(config):
+        frags = scene_lib.prepare_all(s, config.seed, progress, **scene_lib.prepare_kwargs(config))
+        scene_results = evaluate_scene(
+            s, orienters, match_dist=config.match_dist, rho=config.rho, seed=config.seed,
+            progress=progress, fragments=frags)
+        for r in scene_results:
+            for row in r.pairs[:config.plot_pairs]:
+                i, j = row["pair"]
+                report.plot_repeatability(
+                    frags[i].points, frags[i].points[row["keypoints"]], row["repeatable"],
+                    os.path.join(plot_dir, f"{s.name}_{i}_{j}_{r.method}.png"),
+                    f"{r.method}: {s.name} ({i}, {j}), Rep = {row['rep']:.3f}")
+        results += scene_results
+    rows = [dict(method=r.method, scene=r.scene, **r.summary) for r in results]
+    variant = " (rotated)" if config.rotate else ""
+    md = report.write_tables(workdir, rows, report.LRF_COLUMNS, report.LRF_TABLES,
+                             "lrf_results", f"LRF repeatability{variant}")
+    return rows, md

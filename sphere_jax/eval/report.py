@@ -52,17 +52,49 @@ def to_csv(rows, columns):
     return buf.getvalue()
 
 
+def _cell(v, fmt):
+    if isinstance(v, (float, np.floating)):
+        return "–" if not np.isfinite(v) else fmt.format(v)
+    return str(v)
+
+
+def table(rows, columns, headers=None, fmt="{:.3f}"):
+    """A markdown table with one line per row (dicts), columns padded so that it also reads
+    in a terminal; floats formatted by ``fmt`` (NaN as –)."""
+    headers = list(headers or columns)
+    cells = [[_cell(r[c], fmt) for c in columns] for r in rows]
+    widths = [max(len(h), *(len(row[i]) for row in cells)) for i, h in enumerate(headers)]
+    line = lambda vals: "| " + " | ".join(v.ljust(w) for v, w in zip(vals, widths)) + " |"
+    return "\n".join([line(headers), "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
+                     + [line(r) for r in cells])
+
+
+def pivot_table(rows, row_key, col_key, value_key, fmt="{:.3f}", cols=None):
+    """A markdown table of one value: one line per ``row_key``, one column per ``col_key``
+    (in first-seen order unless ``cols``); missing cells as –."""
+    cols = list(cols or dict.fromkeys(r[col_key] for r in rows))
+    names = list(dict.fromkeys(r[row_key] for r in rows))
+    cell = {(r[row_key], r[col_key]): r[value_key] for r in rows}
+    lines = [f"| {row_key} | " + " | ".join(map(str, cols)) + " |", "|---" * (len(cols) + 1)
+             + "|"]
+    for n in names:
+        lines.append(f"| {n} | " + " | ".join(_cell(cell.get((n, c), float("nan")), fmt)
+                                             for c in cols) + " |")
+    return "\n".join(lines)
+
+
 def markdown_table(rows, key, fmt):
     """Rows = methods, columns = scenes (then mean) for one metric."""
     scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean")) + ["mean"]
-    methods = list(dict.fromkeys(r["method"] for r in rows))
-    cell = {(r["method"], r["scene"]): r[key] for r in rows}
-    lines = ["| method | " + " | ".join(scenes) + " |", "|---" * (len(scenes) + 1) + "|"]
-    for m in methods:
-        vals = [cell.get((m, s), float("nan")) for s in scenes]
-        lines.append(f"| {m} | " + " | ".join("–" if not np.isfinite(v) else fmt.format(v)
-                                             for v in vals) + " |")
-    return "\n".join(lines)
+    return pivot_table(rows, "method", "scene", key, fmt, scenes)
+
+
+def write(workdir, stem, rows, columns, md):
+    """``<stem>.csv`` (``columns`` of ``rows``) and ``<stem>.md`` (``md``) in ``workdir``."""
+    os.makedirs(workdir, exist_ok=True)
+    atomic_write(os.path.join(workdir, f"{stem}.csv"), to_csv(rows, columns).encode())
+    atomic_write(os.path.join(workdir, f"{stem}.md"), md.encode())
+    return md
 
 
 def markdown_report(rows, tables, title):
@@ -75,10 +107,7 @@ def markdown_report(rows, tables, title):
 def write_tables(workdir, rows, columns, tables, stem, title):
     """``<stem>.csv`` and ``<stem>.md`` in ``workdir``; returns the markdown."""
     rows = with_means(rows, columns)
-    md = markdown_report(rows, tables, title)
-    atomic_write(os.path.join(workdir, f"{stem}.csv"), to_csv(rows, columns).encode())
-    atomic_write(os.path.join(workdir, f"{stem}.md"), md.encode())
-    return md
+    return write(workdir, stem, rows, columns, markdown_report(rows, tables, title))
 
 
 def _pyplot():

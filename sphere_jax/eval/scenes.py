@@ -19,7 +19,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 from tqdm.auto import tqdm
 
-from sphere_jax.data import augment, patches
+from sphere_jax.data import augment, patches, pipeline
 from sphere_jax.data.readers import stanford, threedmatch
 from sphere_jax.eval.neighbourhood import estimate_normals
 
@@ -155,3 +155,40 @@ def prepare_all(pair_set: PairSet, seed=0, progress=False, **prepare_kwargs) -> 
     keys = sorted({k for p in pair_set.pairs for k in p}, key=pair_set.keys.index)
     return {k: prepare(pair_set, k, seed=seed, **prepare_kwargs)
             for k in tqdm(keys, desc=f"{pair_set.name}: prepare", disable=not progress)}
+
+
+# ---- the scans of an evaluation config ----------------------------------------------------------
+
+def data_root(config):
+    if config.data.root:
+        return config.data.root
+    return pipeline.default_scan_root()
+
+
+def pair_sets(config):
+    """The scan sets of ``config.data`` (scene filter, pair limit, rotated variant applied)."""
+    sets = find_pair_sets(data_root(config), config.data.voxel,
+                                    config.data.get("min_overlap", 0.10))
+    if config.data.scenes:
+        wanted = [s.strip() for s in config.data.scenes.split(",") if s.strip()]
+        unknown = sorted(set(wanted) - {s.name for s in sets})
+        if unknown:
+            raise ValueError(f"data.scenes names {unknown} not among "
+                             f"{[s.name for s in sets]}")
+        sets = [s for s in sets if s.name in wanted]
+    out = []
+    for s in sets:
+        if config.data.max_pairs:
+            s.transforms = {p: s.transforms[p] for p in s.pairs[:config.data.max_pairs]}
+        if not s.transforms:
+            warnings.warn(f"{s.name}: no pairs with ground truth; skipped", stacklevel=2)
+            continue
+        out.append(rotate(s, config.seed)[0] if config.rotate else s)
+    if not out:
+        raise ValueError(f"no scan pairs with ground truth under {data_root(config)!r}")
+    return out
+
+
+def prepare_kwargs(config):
+    d = config.data
+    return dict(voxel=d.voxel, n_keypoints=d.n_keypoints, normal_k=d.normal_k)

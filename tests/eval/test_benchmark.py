@@ -5,7 +5,7 @@ import os
 import pytest
 
 from configs import eval_lrf, eval_registration
-from sphere_jax.eval import benchmark, report
+from sphere_jax.eval import methods, report, scenes, tasks
 
 
 def _read_csv(path):
@@ -17,7 +17,7 @@ def test_registration_tiny_writes_results(tmp_path, shared):
     c = eval_registration.get_config("tiny")
     c.data.root = os.path.join(shared, "3dmatch", "7-scenes-redkitchen")
     c.methods = "fpfh,shot,lead"
-    rows, md = benchmark.run(c, str(tmp_path), progress=False)
+    rows, md = tasks.run(c, str(tmp_path), progress=False)
     table = _read_csv(tmp_path / "results.csv")
     assert tuple(table[0]) == report.REGISTRATION_COLUMNS
     assert [r["method"] for r in table if r["scene"] == "mean"] == ["fpfh", "shot", "lead"]
@@ -35,7 +35,7 @@ def test_lrf_tiny_on_stanford_layout(tmp_path, shared):
                   max_pairs=2)
     c.methods = "flare,shot,toldi,compass"
     c.plot_pairs = 1
-    rows, _ = benchmark.run(c, str(tmp_path), progress=False)
+    rows, _ = tasks.run(c, str(tmp_path), progress=False)
     table = _read_csv(tmp_path / "lrf_results.csv")
     assert tuple(table[0]) == report.LRF_COLUMNS
     means = {r["method"]: float(r["rep"]) for r in table if r["scene"] == "mean"}
@@ -49,22 +49,22 @@ def test_bad_config_values_are_named():
     c = eval_registration.get_config("tiny")
     c.methods = "fpfh,nonsense"
     with pytest.raises(ValueError, match="nonsense"):
-        benchmark.chosen_methods(c, ("fpfh", "shot"), {})
+        methods.chosen_methods(c, ("fpfh", "shot"), {})
     c.data.root = "/no/such/folder"
     with pytest.raises(FileNotFoundError, match="/no/such/folder"):
-        benchmark.pair_sets(c)
+        scenes.pair_sets(c)
     c.bundle = "/no/such/bundle"
     with pytest.raises(FileNotFoundError, match="bundle"):
-        benchmark.bundle_paths(c)
+        methods.bundle_paths(c)
     c.methods = "fpfh,lead_pn"
     with pytest.warns(UserWarning, match="lead_pn"):
-        assert benchmark.chosen_methods(c, ("fpfh", "lead_pn"), {}) == ["fpfh"]
+        assert methods.chosen_methods(c, ("fpfh", "lead_pn"), {}) == ["fpfh"]
 
 
 def test_registration_tiny_on_embedded_scenes_rotated(tmp_path):
     """The default data (no ../shared needed), rotated variant: runs and fills every scene."""
     c = eval_registration.get_config("tiny")
     c.rotate = True
-    rows, md = benchmark.run(c, str(tmp_path), progress=False)
+    rows, md = tasks.run(c, str(tmp_path), progress=False)
     assert {r["scene"] for r in rows} == {"synth-room-0", "synth-room-1"}
     assert "(rotated)" in md

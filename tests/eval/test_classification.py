@@ -2,12 +2,12 @@
 plain PointNet does not (embedded shapes, shipped whole-shape Compass)."""
 import csv
 
-from configs import classify
+from configs import eval_classification
 from sphere_jax.eval import classification
 
 
 def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
-    c = classify.get_config("tiny")
+    c = eval_classification.get_config("tiny")
     c.data.n_points = 256
     c.train.update(steps=400, batch_size=16, log_every=100, eval_every=400,
                    checkpoint_every=400)

@@ -10,9 +10,9 @@ from tests.eval import _fixtures
 
 
 @pytest.fixture(scope="module")
-def kitchen_fragment(request):
-    shared = request.getfixturevalue("shared")
-    return scenes.prepare(_fixtures.kitchen(shared), 0, voxel=0.02, n_keypoints=300)
+def kitchen_fragment():
+    pair_set = _fixtures.kitchen_or_embedded()
+    return scenes.prepare(pair_set, pair_set.pairs[0][0], voxel=0.02, n_keypoints=300)
 
 
 def test_shot_and_spin_match_loop_reference(kitchen_fragment):

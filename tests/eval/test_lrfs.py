@@ -10,13 +10,12 @@ from tests.eval import _fixtures
 
 
 @pytest.fixture(scope="module")
-def kitchen_points(request):
-    shared = request.getfixturevalue("shared")
-    return patches.voxel_downsample(_fixtures.kitchen(shared).load(0), 0.02)
+def kitchen_points():
+    return patches.voxel_downsample(_fixtures.kitchen_or_embedded().load(0), 0.02)
 
 
 @pytest.mark.parametrize("name", ["shot", "toldi"])
-def test_matches_loop_reference_on_real_points(kitchen_points, name):
+def test_matches_loop_reference_on_scan_points(kitchen_points, name):
     pts = kitchen_points.astype(np.float64)
     kp = np.random.default_rng(0).choice(len(pts), 20, replace=False)
     nb = radius_neighbourhoods(pts, pts[kp], 0.3)

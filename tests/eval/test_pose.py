@@ -6,7 +6,7 @@ import pytest
 
 from sphere_jax.data import augment
 from sphere_jax.data.readers import rgbd
-from sphere_jax.eval import pose
+from sphere_jax.eval import labelled, pose
 
 
 def _frame(root, n):
@@ -28,7 +28,7 @@ def test_recovers_planted_pose_on_real_frames(shared, a, b, method):
     q[:3, :3] = augment.random_rotations(np.random.default_rng(a + b))
     view_obj = (view - q[:3, 3]) @ q[:3, :3]                    # = Q⁻¹ · view
     t_gt = np.linalg.inv(pb) @ pa @ q
-    box = pose.project_box(view_obj @ t_gt[:3, :3].T + t_gt[:3, 3], k, margin=10)
+    box = labelled.project_box(view_obj @ t_gt[:3, :3].T + t_gt[:3, 3], k, margin=10)
     decoy = pose.ObjectModel("decoy", "other", [view_obj[::7] * [1.0, 0.3, 1.0]])  # squashed
     result = pose.estimate_pose(db, k, box, [decoy, pose.ObjectModel("crop", "wall", [view_obj])],
                                 voxel=0.02, method=method)

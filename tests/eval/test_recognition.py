@@ -7,7 +7,7 @@ import pytest
 from sphere_jax.data import augment
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
-from sphere_jax.eval import recognition, saliency
+from sphere_jax.eval import labelled, recognition, saliency
 
 
 def test_box_iou_hand_made():
@@ -36,7 +36,7 @@ def test_consistency_grouping_finds_the_rigid_set_among_outliers():
     scene[25:] = rng.uniform(-0.5, 0.5, (15, 3)) + [0, 0, 1]         # 15 wrong matches
     groups = recognition.consistency_groups(model, scene, 0.005, min_size=3)
     assert sorted(groups[0]) == list(range(25))
-    est = recognition.kabsch(model[groups[0]], scene[groups[0]])
+    est = labelled.kabsch(model[groups[0]], scene[groups[0]])
     assert np.abs(est - t).max() < 1e-9
 
 
@@ -54,8 +54,8 @@ def test_saliency_keeps_objects_and_drops_keypoints(frames):
         kept_obj.append(mask[fr.mask > 0].mean())
         kept_px.append(mask.mean())
         pts, px = fr.points()
-        full = recognition.make_fragment(pts, 0.03, 0.005)
-        boosted = recognition.make_fragment(pts[mask[px[:, 0], px[:, 1]]], 0.03, 0.005)
+        full = labelled.make_fragment(pts, 0.03, 0.005)
+        boosted = labelled.make_fragment(pts[mask[px[:, 0], px[:, 1]]], 0.03, 0.005)
         kp_ratio.append(len(boosted.keypoints) / len(full.keypoints))
     print(f"objects kept {np.mean(kept_obj):.2f}, pixels kept {np.mean(kept_px):.2f}, "
           f"keypoints kept {np.mean(kp_ratio):.2f}")
@@ -71,9 +71,9 @@ def test_spectral_residual_rejects_bad_images():
 def test_recognition_finds_objects_on_synthetic_frames(frames):
     """SHOT with the database of the first two views per scene: above-chance AUC."""
     from sphere_jax.eval import methods
-    model, test = recognition.split_frames(frames, 2)
+    model, test = labelled.split_frames(frames, 2)
     assert len(model) == 8 and len(test) == 16
-    db = recognition.build_database(model, 0.03, 0.005)
+    db = labelled.build_database(model, 0.03, 0.005)
     rows, _ = recognition.evaluate(test[::4], db, {"shot": methods.descriptor("shot", 0.08)},
                                    0.03, 0.005, 0.3, 0.01, max_depth=1.6, progress=False)
     print(rows[0])

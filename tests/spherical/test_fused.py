@@ -120,24 +120,8 @@ def test_truncate_equals_analysis_to_fewer_degrees(on_so3):
         fused.truncate(want, 6)
 
 
-def test_sound_fused_trunk_equals_layer_by_layer():
-    from sphere_jax.models.sound import Sound
+def test_spectrum_input_needs_the_fused_path():
     rng = np.random.default_rng(6)
-    # Descriptor branch at lower bandwidth than the LRF branch: the shared trunk's spectrum is
-    # truncated for it.
-    model = Sound(s2_bandwidths=(8, 8), s2_features=3, descriptor_bandwidths=(8, 6, 4),
-                  descriptor_features=(3, 1), lrf_bandwidths=(8, 8, 8), lrf_features=(2, 1),
-                  decoder_side=4, decoder_hidden=(8, 8, 8))
-    p = jnp.asarray(rng.normal(size=(3, 64, 3)) * 0.4, jnp.float32)
-    variables = model.init(jax.random.PRNGKey(0), p, train=False)
-    stats = jax.tree_util.tree_map(lambda a: a + jnp.asarray(rng.uniform(0.2, 0.8, a.shape),
-                                                             jnp.float32),
-                                   variables["batch_stats"])
-    variables = {"params": variables["params"], "batch_stats": stats}
-    rot_w, maps_w, _ = model.clone(fused=False).apply(variables, p, train=False)
-    rot_g, maps_g, _ = jax.jit(lambda v, p: model.apply(v, p, train=False))(variables, p)
-    assert rel_err(maps_g, maps_w) < 1e-5
-    assert float(jnp.abs(rot_g - rot_w).max()) < 1e-4
     stack = SphericalStack((2,), (8, 6), s2_first=False, fused=False)
     h = fused.analyse(jax.nn.relu(transforms.so3_ifft(
         reference.random_so3_coeffs(rng, (1, 2), 6), 8)), 6, True)

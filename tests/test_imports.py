@@ -1,0 +1,125 @@
+"""The package's import graph has no cycle — imports at module level and inside functions
+alike (a function-local import is how a cycle hides) — and no module reaches into another's
+private names."""
+import ast
+import os
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PACKAGES = ("sphere_jax", "configs", "experiments")
+
+
+def _modules():
+    """Dotted name -> source file of every module of the project's packages."""
+    out = {}
+    for pkg in PACKAGES:
+        for folder, _, files in os.walk(os.path.join(ROOT, pkg)):
+            for f in files:
+                if f.endswith(".py"):
+                    rel = os.path.relpath(os.path.join(folder, f), ROOT)[:-3].split(os.sep)
+                    name = ".".join(rel[:-1] if rel[-1] == "__init__" else rel)
+                    out[name] = os.path.join(folder, f)
+    return out
+
+
+def import_graph(modules):
+    """Module -> set of project modules it imports (``from a import b`` counts ``a.b`` when
+    that is a module, else ``a``), and the private names imported from other modules."""
+    graph, private = {}, []
+    for name, path in modules.items():
+        is_pkg = path.endswith("__init__.py")
+        with open(path) as f:
+            tree = ast.parse(f.read(), path)
+        deps, bound = set(), {}          # bound: local name -> the project module it names
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                deps.update(a.name for a in node.names if a.name in modules)
+                bound.update((a.asname, a.name) for a in node.names
+                             if a.asname and a.name in modules)
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:                                  # relative import
+                    base = name.split(".") if is_pkg else name.split(".")[:-1]
+                    base = base[:len(base) - node.level + 1]
+                    src = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    src = node.module
+                for a in node.names:
+                    full = f"{src}.{a.name}"
+                    if full in modules:
+                        deps.add(full)
+                        bound[a.asname or a.name] = full
+                    elif src in modules:
+                        deps.add(src)
+                        if a.name.startswith("_") and src != name:
+                            private.append(f"{name} imports {src}.{a.name}")
+        for node in ast.walk(tree):              # module._private, e.g. datasets._read_image
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.value.id in bound and node.attr.startswith("_")
+                    and not node.attr.startswith("__")):
+                private.append(f"{name} uses {bound[node.value.id]}.{node.attr}")
+        deps.discard(name)
+        graph[name] = deps
+    return graph, private
+
+
+def find_cycle(graph):
+    """One import cycle as a list of modules, or None."""
+    state, stack = {}, []
+
+    def visit(m):
+        state[m] = "open"
+        stack.append(m)
+        for d in sorted(graph.get(m, ())):
+            if d in graph and state.get(d) == "open":
+                return stack[stack.index(d):] + [d]
+            if d in graph and d not in state:
+                found = visit(d)
+                if found:
+                    return found
+        stack.pop()
+        state[m] = "done"
+        return None
+
+    for m in sorted(graph):
+        if m not in state:
+            found = visit(m)
+            if found:
+                return found
+    return None
+
+
+def _parents_excluded(graph):
+    """A package's ``__init__`` importing its submodules is not a cycle with them: drop the
+    edges from a submodule to its own parent packages (Python imports parents first)."""
+    return {m: {d for d in deps if not m.startswith(d + ".")} for m, deps in graph.items()}
+
+
+def test_no_import_cycle_in_the_project():
+    graph, _ = import_graph(_modules())
+    assert find_cycle(_parents_excluded(graph)) is None, find_cycle(_parents_excluded(graph))
+
+
+def test_no_private_name_crosses_modules():
+    _, private = import_graph(_modules())
+    assert not private, private
+
+
+def test_the_checker_finds_a_planted_cycle():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert find_cycle(graph) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+@pytest.mark.parametrize("source, expected", [
+    ("def f():\n    from sphere_jax import api\n", {"sphere_jax.api"}),
+    ("from sphere_jax.eval import methods as m\n", {"sphere_jax.eval.methods"}),
+    ("import sphere_jax.paths\n", {"sphere_jax.paths"}),
+])
+def test_function_level_imports_are_seen(tmp_path, source, expected):
+    path = tmp_path / "probe.py"
+    path.write_text(source)
+    modules = {k: v for k, v in _modules().items()}
+    modules["probe"] = str(path)
+    graph, _ = import_graph(modules)
+    assert graph["probe"] == expected
