@@ -2,7 +2,8 @@
 classification experiment (thesis 3.3), trained on canonical-pose shapes.
 
     python -m experiments.train --config=classify:cpu --workdir=runs/classify_cpu
-    python -m experiments.train --config=classify:cpu --config.orient_bundle=runs/compass_shapes_cpu/bundle
+    python -m experiments.train --config=classify:cpu \
+        --config.orient_bundle=runs/compass_shapes_cpu/bundle
 
 With ``orient_bundle`` (a whole-shape Compass, ``--config=compass_shapes``) every shape is
 turned to its Compass frame first. Expected on the embedded 12-class shape set: validation

@@ -8,7 +8,7 @@ self-supervised loss on the embedded shape set (or any ModelNet40 folder).
 Expected: the geodesic loss falls well below its ~2 rad start within the 'cpu' budget; the
 bundle then orients shapes for ``--config=classify``.
 """
-from configs import common, compass
+from configs import compass
 
 
 def get_config(arg=None):

@@ -3,7 +3,8 @@ Compass, both trained on canonical-pose shapes, tested in canonical pose (NR) an
 test shape turned by a seeded random rotation (AR).
 
     python -m experiments.evaluate --config=eval_classification:cpu
-    python -m experiments.evaluate --config=eval_classification:cpu --config.data.root=/data/modelnet40_normal_resampled
+    python -m experiments.evaluate --config=eval_classification:cpu \
+        --config.data.root=/data/modelnet40_normal_resampled
 
 Trains one PointNet per method (``workdir/<method>/``, the ``classify`` config at this size),
 then writes classification.csv (method, split, accuracy) and classification.md. Expected on

@@ -1,4 +1,4 @@
-"""Evaluations: ``python -m experiments.evaluate --config=eval_registration[:quick] [--workdir=DIR]``.
+"""Evaluations: ``python -m experiments.evaluate --config=eval_registration[:quick]``.
 
 ``--config`` takes an evaluation config — ``eval_registration``, ``eval_lrf``,
 ``eval_classification``, ``eval_recognition``, ``eval_objects``, ``eval_pose`` (optionally

@@ -11,7 +11,7 @@ The three calls most people need::
     desc = sphere_jax.describe("checkpoints/sound_cpu/bundle", points, keypoints)     # [K, 512]
     bundle = sphere_jax.load_bundle(path)        # reuse one bundle across calls
 
-Conventions (owned by :mod:`sphere_jax.spherical.so3`): points are ``[N, 3]`` float arrays in metres,
+Conventions (``sphere_jax/spherical/CONVENTIONS.md``): points are ``[N, 3]`` float arrays in metres,
 rotations act actively (``p' = R p``), an LRF is a 3×3 matrix whose **columns** are x̂, ŷ, ẑ in
 world coordinates, so a patch in canonical pose is ``(p − keypoint) @ F``. Modules:
 ``so3, wigner, transforms, correlation, layers, signal, soft_argmax, losses`` (the spherical

@@ -126,8 +126,8 @@ def run_chunked(fn, x, chunk=None, workers=None):
     :func:`default_workers`).
 
     Concurrent chunks are what uses a multi-core CPU here: XLA runs the loops of the fused
-    inference path (:mod:`sphere_jax.spherical.fused`) on one thread, so one chunk at a time keeps one
-    core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
+    inference path (:mod:`~sphere_jax.spherical.fused`) on one thread, so one chunk at a time
+    keeps one core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
     Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
     """
     chunk = DEFAULT_CHUNK if chunk is None else int(chunk)

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from math import cos, factorial, sin, sqrt
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from sphere_jax.spherical import so3, wigner
@@ -257,3 +259,12 @@ def spin_image_loop(points, normal, centre, radius, width=8):
                 img[row, col] += wr * wc
     h = img.reshape(-1)
     return h / np.linalg.norm(h)
+
+
+def shifted_batch_stats(variables, rng):
+    """``variables`` with every batch statistic moved by U(0.2, 0.8), so that a test
+    exercises the batch-norm affine step instead of the (0, 1) initial statistics."""
+    stats = jax.tree_util.tree_map(
+        lambda a: a + jnp.asarray(rng.uniform(0.2, 0.8, a.shape), jnp.float32),
+        variables["batch_stats"])
+    return {"params": variables["params"], "batch_stats": stats}

@@ -1,6 +1,7 @@
 """Keypoints and local patches (numpy; open3d only for ISS).
 
-A patch is what :func:`sphere_jax.spherical.signal.patch_signal` consumes: N points drawn with replacement
+A patch is what :func:`~sphere_jax.spherical.signal.patch_signal` consumes: N points drawn
+with replacement
 from the neighbours within a radius of a keypoint, the keypoint itself excluded, in coordinates
 relative to the keypoint.
 """

@@ -2,9 +2,11 @@
 
 * hand-crafted baselines on exact neighbourhoods: :mod:`neighbourhood`, :mod:`lrfs` (SHOT,
   TOLDI), :mod:`descriptors` (SHOT, Spin Images, FPFH);
-* registration and LRF benchmarks: :mod:`scenes` (inputs, rotated variant), :mod:`methods`
-  (names → callables), :mod:`registration`, :mod:`repeatability`, :mod:`benchmark` (config →
-  files), :mod:`report` (CSV, markdown, plots);
-* recognition: :mod:`classification` (Compass + PointNet, NR/AR), :mod:`recognition` and
-  :mod:`saliency` (Saliency Boost), :mod:`objects` (colour + shape), :mod:`pose`.
+* shared pieces: :mod:`scenes` (scan pairs, preparation, the rotated variant, the scans of a
+  config), :mod:`methods` (names → callables, bundle choice), :mod:`report` (tables, CSV,
+  plots), :mod:`labelled` (labelled RGB-D frames, model views, Kabsch);
+* the tasks, found by ``config.task`` through :mod:`tasks`, each with ``run(config, workdir,
+  progress)``: :mod:`registration`, :mod:`repeatability` (LRFs), :mod:`classification`
+  (Compass + PointNet, NR/AR), :mod:`recognition` (with :mod:`saliency`: Saliency Boost),
+  :mod:`objects` (colour + shape), :mod:`pose`.
 """

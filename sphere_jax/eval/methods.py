@@ -15,7 +15,8 @@ the resampled unit patches they were trained on.
 ``sound``          SOUND, self-oriented
 =================  ==============================================================================
 
-LRFs: ``flare`` (:func:`sphere_jax.models.flare.flare` on the model's resampled patches, as LEAD uses
+LRFs: ``flare`` (:func:`~sphere_jax.models.flare.flare` on the model's resampled patches, as LEAD
+uses
 it), ``shot``, ``toldi``, ``compass`` and ``sound`` (its Compass branch).
 """
 from __future__ import annotations

@@ -15,7 +15,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import api, training
+from sphere_jax import api, models, training
 from sphere_jax.eval import methods as method_lib
 from sphere_jax.eval import report
 from sphere_jax.eval import scenes as scene_lib
@@ -108,9 +108,10 @@ def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
 def adapted_bundles(config, bundles, names, workdir, progress):
     """Test-time adaptation of the learned LRF bundles on the evaluation scans."""
     out = dict(bundles)
-    for kind in ("compass", "sound"):
-        if kind in names:
-            out[kind], _ = training.adapt(api.load_bundle(bundles[kind]), scene_lib.data_root(config),
+    for kind, spec in models.SPECS.items():
+        if spec.orient is not None and kind in names:
+            out[kind], _ = training.adapt(api.load_bundle(bundles[kind]),
+                                          scene_lib.data_root(config),
                                           config.adapt_steps,
                                           os.path.join(workdir, f"adapted_{kind}"),
                                           progress=progress)

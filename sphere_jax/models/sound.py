@@ -58,7 +58,8 @@ class Sound(nn.Module):
 
     def trunk(self, patches, train):
         """The shared S2 layer's output: grids ``[N, C, 2B, 2B, 2B]``, or at inference with
-        ``fused`` their spectrum (:mod:`sphere_jax.spherical.fused`) — at B = 24 the grids of a chunk of
+        ``fused`` their spectrum (:mod:`~sphere_jax.spherical.fused`) — at B = 24 the grids of a
+        chunk of
         256 patches would take 4.5 GB."""
         x = self.signal(patches)
         if train or not self.fused:

@@ -23,7 +23,8 @@ class SphericalStack(nn.Module):
     ReLU after every layer but the last unless ``final_relu``.
 
     At inference (``train=False``) with ``fused`` the layers are chained in the spectral domain
-    (:mod:`sphere_jax.spherical.fused`): same parameters, same outputs to round-off, less memory traffic
+    (:mod:`~sphere_jax.spherical.fused`): same parameters, same outputs to round-off, less memory
+    traffic
     and fewer multiplications (LEAD 'paper' describes 2.5 times faster on 2 cores). Training
     uses the layer-by-layer path, whose batch statistics need whole grids. On the fused path
     the input may also be a :class:`fused.Spectrum` of the input grids (analysed to at least

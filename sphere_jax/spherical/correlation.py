@@ -3,7 +3,7 @@
 A kernel is a set of weights on a small grid of points ``g`` (on S2, or rotations in SO(3)).
 Correlating a signal with it gives, for every rotation R of the output SO(3) grid,
 
-    h(R) = Σ_g w_g f(R g)          (CONVENTIONS.md §4: (ψ ⋆ f)(R) = ∫ f(x) ψ(R⁻¹x) dx, ψ = Σ w_g δ_g)
+    h(R) = Σ_g w_g f(R g)   (CONVENTIONS.md §4: (ψ ⋆ f)(R) = ∫ f(x) ψ(R⁻¹x) dx, ψ = Σ w_g δ_g)
 
 evaluated exactly for the band-limited f, in the spectral domain (Cohen et al. 2018):
 

@@ -31,3 +31,16 @@ def map_equivariance(maps_fn, patches, seeds=(0, 1, 2)):
         errs.append(float(jnp.linalg.norm(lhs - rhs) / norm))
         unrelated.append(float(jnp.linalg.norm(lhs - jnp.roll(rhs, 1, 0)) / norm))
     return np.array(errs), np.array(unrelated)
+
+
+def assert_maps_equivariant(label, model, maps, capsys, tol=0.25):
+    """Initialise ``model`` on :func:`surfaces` and check that ``maps(model, variables, x)``
+    (SO(3) maps) rotate with the patches: not exactly (the patch signal is not band-limited and
+    ReLU acts on the grid), but within ``tol`` and far closer than another patch's maps."""
+    p = surfaces()
+    variables = model.init(jax.random.PRNGKey(0), p)
+    errs, unrelated = map_equivariance(jax.jit(lambda x: maps(model, variables, x)), p)
+    with capsys.disabled():
+        print(f"\n  {label} equivariance, relative error: {errs.round(3)}; against other "
+              f"patches: {unrelated.round(3)}")
+    assert errs.max() < tol and errs.max() < unrelated.min() / 4

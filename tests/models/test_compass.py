@@ -1,7 +1,6 @@
 """Compass: its SO(3) map rotates with the patch, and the shipped LRF bundles (Compass and
 SOUND's LRF branch) give frames that rotate with a real scan — or, on a fresh clone without the
 shared scans, with an embedded synthetic fragment."""
-import jax
 import numpy as np
 import pytest
 
@@ -15,14 +14,8 @@ from tests.models import _helpers
 
 def test_compass_map_is_equivariant(capsys):
     model = models.Compass(bandwidths=(8, 8, 8, 8, 8), features=(6, 6, 4, 1))
-    p = _helpers.surfaces()
-    variables = model.init(jax.random.PRNGKey(0), p)
-    maps = jax.jit(lambda x: model.apply(variables, x).maps)
-    errs, unrelated = _helpers.map_equivariance(maps, p)
-    with capsys.disabled():
-        print(f"\n  Compass map (B 8) equivariance, relative error: {errs.round(3)}; against "
-              f"other patches: {unrelated.round(3)}")
-    assert errs.max() < 0.25 and errs.max() < unrelated.min() / 4
+    _helpers.assert_maps_equivariant("Compass map (B 8)", model,
+                                     lambda m, v, x: m.apply(v, x).maps, capsys)
 
 
 def _scans():

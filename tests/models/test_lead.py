@@ -10,15 +10,8 @@ def test_lead_encoder_is_equivariant(capsys):
     batch norm, ReLU) commutes with rotations up to the grid's discretisation."""
     model = models.Lead(bandwidths=(8, 6, 5, 4, 4, 4), features=(8, 8, 8, 8, 1),
                         decoder_side=4, decoder_hidden=(8, 8, 8))
-    p = _helpers.surfaces()
-    variables = model.init(jax.random.PRNGKey(0), p)
-    encode = jax.jit(lambda x: model.apply(variables, x, method="encode"))
-    errs, unrelated = _helpers.map_equivariance(encode, p)
-    with capsys.disabled():
-        print(f"\n  LEAD encoder (B 8->4) equivariance, relative error: {errs.round(3)}; "
-              f"against other patches: {unrelated.round(3)}")
-    # Not exact: the patch signal is not band-limited and ReLU acts on the grid.
-    assert errs.max() < 0.25 and errs.max() < unrelated.min() / 4
+    _helpers.assert_maps_equivariant("LEAD encoder (B 8->4)", model, lambda m, v, x: m.apply(
+        v, x, method="encode"), capsys)
 
 
 def test_lead_outputs_are_named():

@@ -1,7 +1,6 @@
 """The shipped bundles' outputs against a fixture recorded before the last refactor
 (``shipped_outputs.py``): a change of structure must not change a single output."""
 import numpy as np
-import pytest
 
 from tests.models import shipped_outputs
 

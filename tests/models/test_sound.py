@@ -6,6 +6,7 @@ import numpy as np
 
 from sphere_jax.models.sound import Sound, SoundOut
 from tests.models import _helpers
+from tests import reference
 from tests.reference import rel_err
 
 
@@ -13,14 +14,8 @@ def test_sound_descriptor_map_is_equivariant(capsys):
     model = Sound(s2_bandwidths=(8, 8), s2_features=6, descriptor_bandwidths=(8, 6, 4),
                   descriptor_features=(6, 1), lrf_bandwidths=(8, 8, 8), lrf_features=(4, 1),
                   decoder_side=4, decoder_hidden=(8, 8, 8))
-    p = _helpers.surfaces()
-    variables = model.init(jax.random.PRNGKey(0), p)
-    maps = jax.jit(lambda x: model.apply(variables, x).maps)
-    errs, unrelated = _helpers.map_equivariance(maps, p)
-    with capsys.disabled():
-        print(f"\n  SOUND descriptor map (B 8->4) equivariance, relative error: "
-              f"{errs.round(3)}; against other patches: {unrelated.round(3)}")
-    assert errs.max() < 0.25 and errs.max() < unrelated.min() / 4
+    _helpers.assert_maps_equivariant("SOUND descriptor map (B 8->4)", model,
+                                     lambda m, v, x: m.apply(v, x).maps, capsys)
 
 
 def test_sound_fused_trunk_equals_layer_by_layer():
@@ -32,10 +27,7 @@ def test_sound_fused_trunk_equals_layer_by_layer():
                   decoder_side=4, decoder_hidden=(8, 8, 8))
     p = jnp.asarray(rng.normal(size=(3, 64, 3)) * 0.4, jnp.float32)
     variables = model.init(jax.random.PRNGKey(0), p, train=False)
-    stats = jax.tree_util.tree_map(lambda a: a + jnp.asarray(rng.uniform(0.2, 0.8, a.shape),
-                                                             jnp.float32),
-                                   variables["batch_stats"])
-    variables = {"params": variables["params"], "batch_stats": stats}
+    variables = reference.shifted_batch_stats(variables, rng)
     want = model.clone(fused=False).apply(variables, p, train=False)
     got = jax.jit(lambda v, p: model.apply(v, p, train=False))(variables, p)
     assert isinstance(got, SoundOut)

@@ -58,10 +58,7 @@ def test_stack_fused_equals_layer_by_layer(s2_first, final_relu):
     stack = SphericalStack(feats, bands, s2_first=s2_first, final_relu=final_relu)
     variables = stack.init(jax.random.PRNGKey(0), x, train=False)
     # Batch statistics away from (0, 1), so that the affine step is exercised.
-    stats = jax.tree_util.tree_map(lambda a: a + jnp.asarray(rng.uniform(0.2, 0.8, a.shape),
-                                                             jnp.float32),
-                                   variables["batch_stats"])
-    variables = {"params": variables["params"], "batch_stats": stats}
+    variables = reference.shifted_batch_stats(variables, rng)
     want = stack.clone(fused=False).apply(variables, x, train=False)
     got = jax.jit(lambda v, x: stack.apply(v, x, train=False))(variables, x)
     assert got.shape == want.shape == (3, 2, 8, 8, 8)

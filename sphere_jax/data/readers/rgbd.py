@@ -125,7 +125,8 @@ class ObjectFrame:
 
 
 def read_object_frames(folder) -> list[ObjectFrame]:
-    """Every ``frame-N`` of a folder written by :func:`sphere_jax.data.generators.synthetic.make_object_frames`
+    """Every ``frame-N`` of a folder written by
+    :func:`sphere_jax.data.generators.synthetic.make_object_frames`
     (``.color.png``, ``.depth.png``, ``.mask.png``, ``.pose.txt``, ``.labels.json``)."""
     folder = str(folder)
     k = read_intrinsics(os.path.join(folder, "camera-intrinsics.txt"))

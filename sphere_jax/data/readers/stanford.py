@@ -21,7 +21,8 @@ def quaternion_to_matrix(q_xyzw):
 
 
 def read_stanford_conf(path):
-    """``{scan file name: T [4, 4]}`` mapping each scan into the world: ``p_world = R(q)ᵀ p + t``."""
+    """``{scan file name: T [4, 4]}`` mapping each scan into the world:
+    ``p_world = R(q)ᵀ p + t``."""
     check_exists(path)
     out = {}
     with open(path, "r", encoding="ascii", errors="replace") as f:
