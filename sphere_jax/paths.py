@@ -56,3 +56,13 @@ def shipped_bundle(name, required=False):
         raise FileNotFoundError(f"no shipped bundle {name!r} in {checkpoints_root()} (set "
                                 f"SPHERE_JAX_CHECKPOINTS to the repository's checkpoints/)")
     return ""
+
+
+def portable(path):
+    """``path`` as a label that means the same on any machine: ``embedded/<rel>`` under the
+    synthetic data cache, ``shared/<rel>`` under the real scans, else the absolute path."""
+    path = os.path.abspath(str(path))
+    for label, root in (("embedded", cache_root()), ("shared", real_data_root())):
+        if root and os.path.commonpath([path, os.path.abspath(root)]) == os.path.abspath(root):
+            return "/".join([label, os.path.relpath(path, root).replace(os.sep, "/")])
+    return path

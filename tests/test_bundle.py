@@ -35,3 +35,13 @@ def test_shipped_bundles_state_what_they_were_trained_on():
 def test_unknown_model_kind_names_the_kinds():
     with pytest.raises(ValueError, match="unknown model 'pointnet2'; the kinds are compass"):
         models.spec("pointnet2")
+
+
+def test_portable_labels_of_data_folders(tmp_path, monkeypatch):
+    monkeypatch.setenv("SPHERE_JAX_DATA", str(tmp_path / "cache"))
+    assert paths.portable(tmp_path / "cache" / "synthetic-v1-seed0" / "3dmatch") == \
+        "embedded/synthetic-v1-seed0/3dmatch"
+    assert paths.portable(tmp_path / "elsewhere") == str(tmp_path / "elsewhere")
+    monkeypatch.setenv("SPHERE_JAX_REAL_DATA", str(tmp_path))
+    (tmp_path / "3dmatch").mkdir()
+    assert paths.portable(tmp_path / "3dmatch" / "x") == "shared/3dmatch/x"

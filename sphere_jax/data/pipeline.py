@@ -11,6 +11,7 @@ import os
 import numpy as np
 from sklearn.neighbors import KDTree
 
+from sphere_jax import paths
 from sphere_jax.data import augment, patches
 from sphere_jax.data.readers import io
 from sphere_jax.data.generators import synthetic
@@ -77,7 +78,7 @@ class PatchSource:
         """What this source trains on, for the bundle: scans per folder, keypoints per split."""
         folders = {}
         for path in self.scan_paths:
-            folder = os.path.dirname(os.path.abspath(path))
+            folder = paths.portable(os.path.dirname(path))
             folders[folder] = folders.get(folder, 0) + 1
         return {"kind": "scans", "folders": folders,
                 "keypoints": {k: int(len(v)) for k, v in self.splits.items()}}
@@ -159,7 +160,8 @@ class ShapeSource:
 
     def statement(self):
         """What this source trains on, for the bundle: the shape folder, shapes per split."""
-        return {"kind": "shapes", "folders": {self.root: len(self.splits["train"][0])},
+        return {"kind": "shapes", "folders": {paths.portable(self.root):
+                                              len(self.splits["train"][0])},
                 "classes": len(self.classes),
                 "shapes": {k: len(v[0]) for k, v in self.splits.items()}}
 

