@@ -25,7 +25,6 @@ from sklearn.neighbors import KDTree
 from sphere_jax import bundle as bundle_files
 from sphere_jax import models
 from sphere_jax.data import patches as patch_lib
-from sphere_jax.data import pipeline
 from sphere_jax.models import flare
 
 FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
@@ -82,7 +81,7 @@ class Bundle:
 
     def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
-        :func:`sphere_jax.data.pipeline.unit_shapes`)."""
+        :func:`sphere_jax.data.patches.unit_shapes`)."""
         self._can("orient")
         return self._run(self._orient_fn, np.asarray(patches_KxNx3, np.float32), chunk, workers)
 
@@ -203,6 +202,6 @@ def orient_shapes(bundle, shapes_BxNx3):
     n = bundle.config.data.n_points
     rng = np.random.default_rng(0)
     pick = rng.integers(0, shapes_BxNx3.shape[1], n)            # the network's point count
-    unit, centres = pipeline.unit_shapes(shapes_BxNx3)
+    unit, centres = patch_lib.unit_shapes(shapes_BxNx3)
     frames = np.asarray(bundle.orient_patches(unit[:, pick], chunk=min(len(unit), 256)))
     return np.einsum("bnk,bkj->bnj", shapes_BxNx3 - centres, frames).astype(np.float32)

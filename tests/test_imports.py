@@ -123,3 +123,15 @@ def test_function_level_imports_are_seen(tmp_path, source, expected):
     modules["probe"] = str(path)
     graph, _ = import_graph(modules)
     assert graph["probe"] == expected
+
+
+def test_the_inference_api_does_not_import_open3d():
+    """The JAX side (api, training's models, the spherical core) never needs open3d: importing
+    it must not pull it in (it is a 400 MB library with a system dependency)."""
+    import subprocess
+    import sys
+    code = ("import sys, sphere_jax.api, sphere_jax.models, sphere_jax.spherical.fused; "
+            "print('open3d' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"

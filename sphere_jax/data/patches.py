@@ -114,3 +114,12 @@ def extract_patches(points, keypoints, radius, n_points, rng: np.random.Generato
         rng.random((len(kept), n_points)) * counts[kept, None]).astype(np.int64)
     local = points[flat[pick]] - points[keypoints[kept]][:, None, :]
     return Patches(local.astype(np.float32), keypoints[kept], counts[kept])
+
+
+def unit_shapes(shapes_BxNx3):
+    """Whole shapes as unit patches (CONVENTIONS.md §7, ModelNet): centred on the bounding-box
+    centre, in units of half the largest bounding-box side. Returns ``(patches, centres)``."""
+    lo, hi = shapes_BxNx3.min(1, keepdims=True), shapes_BxNx3.max(1, keepdims=True)
+    centres = (lo + hi) / 2
+    half = np.max(hi - lo, axis=2, keepdims=True) / 2
+    return ((shapes_BxNx3 - centres) / np.maximum(half, 1e-9)).astype(np.float32), centres

@@ -117,15 +117,6 @@ def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True):
     return {"copies": cop, "rotations": rots.astype(np.float32)}
 
 
-def unit_shapes(shapes_BxNx3):
-    """Whole shapes as unit patches (CONVENTIONS.md §7, ModelNet): centred on the bounding-box
-    centre, in units of half the largest bounding-box side. Returns ``(patches, centres)``."""
-    lo, hi = shapes_BxNx3.min(1, keepdims=True), shapes_BxNx3.max(1, keepdims=True)
-    centres = (lo + hi) / 2
-    half = np.max(hi - lo, axis=2, keepdims=True) / 2
-    return ((shapes_BxNx3 - centres) / np.maximum(half, 1e-9)).astype(np.float32), centres
-
-
 class ShapeSource:
     """A labelled shape set in one of ModelNet40's released layouts:
 
@@ -179,7 +170,7 @@ class ShapeSource:
                                              replace=len(shapes[i]) < self.n_points)]
                         for i in pick]).astype(np.float32)
         if copies:
-            unit = unit_shapes(pts)[0]
+            unit = patches.unit_shapes(pts)[0]
             return {"patches": unit, **rotated_copies(unit, rng, occlusion)}
         if rotate:
             pts = np.einsum("bij,bnj->bni", augment.random_rotations(rng, batch_size), pts)
