@@ -37,7 +37,9 @@ def base(size: str) -> ml_collections.ConfigDict:
     c.infer_chunk = 256
     c.train = ml_collections.ConfigDict(dict(
         steps=50_000, batch_size=8, learning_rate=1e-3, log_every=50, eval_every=1000,
-        eval_batches=4, checkpoint_every=1000, keep_checkpoints=3))
+        eval_batches=4, checkpoint_every=1000, keep_checkpoints=3,
+        fused=True,               # spectral-domain training; False: layer-by-layer reference
+        devices=0))               # data-parallel devices per host; 0: all local devices
     if size == "cpu":
         c.data.n_points = 512
         c.train.update(steps=1500, log_every=25, eval_every=250, checkpoint_every=250)

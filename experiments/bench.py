@@ -2,9 +2,11 @@
 
 Suites (one module each in ``experiments/benchmarks/``, whose docstring says what it times):
 ``layers`` (every spherical layer of the seed's models), ``patches`` (keypoints, patches and
-spherical signals on a 3DMatch fragment), ``models`` (forward, training step and description
+spherical signals on a 3DMatch fragment), ``models`` (forward and description
 per config; ``--sizes=cpu,paper``, ``--only=lead``), ``registration`` (one 3DMatch pair end to
-end). ``--json`` prints one JSON list of the records instead of the table.
+end), ``train`` (training steps fused vs layer by layer on 1 and 2 devices, patches/s, peak RSS,
+data wait; ``--sizes``, ``--only``, ``--repeats`` steps). ``--json`` prints one JSON list of the
+records instead of the table.
 """
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ from absl import app, flags
 from experiments.benchmarks import SUITES, common
 
 flags.DEFINE_enum("suite", "layers", SUITES, "which benchmark suite to run")
-flags.DEFINE_string("sizes", "cpu,paper", "models suite: config sizes, comma-separated")
+flags.DEFINE_string("sizes", "cpu,paper", "models/train suites: config sizes, comma-separated")
 flags.DEFINE_integer("keypoints", 5000, "models/registration suites: keypoints per fragment")
 flags.DEFINE_bool("json", False, "print one JSON list of records instead of the table")
 flags.DEFINE_integer("batch", 8, "layers suite: batch size")
@@ -30,8 +32,8 @@ def main(argv):
         raise app.UsageError(f"unexpected arguments {argv[1:]}")
     f = flags.FLAGS
     suite = importlib.import_module(f"experiments.benchmarks.{f.suite}")
-    records = suite.run(batch=f.batch, repeats=f.repeats if f.suite != "models"
-                        else min(f.repeats, 3), only=f.only, keypoints=f.keypoints,
+    repeats = min(f.repeats, 3) if f.suite in ("models", "train") else f.repeats
+    records = suite.run(batch=f.batch, repeats=repeats, only=f.only, keypoints=f.keypoints,
                         sizes=tuple(f.sizes.split(",")))
     if f.json:
         print(json.dumps(records))

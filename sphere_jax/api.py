@@ -154,8 +154,11 @@ def run_chunked(fn, x, chunk=None, workers=None):
 
 
 def default_workers() -> int:
-    """Chunks run at a time by :func:`run_chunked`: one per core this process may use, at most
-    4 (each holds its chunk's intermediates: about 0.7 GB for LEAD 'paper' at 256 patches)."""
+    """Chunks run at a time by :func:`run_chunked`: on a CPU backend one per core this process
+    may use, at most 4 (each holds its chunk's intermediates: about 0.7 GB for LEAD 'paper' at
+    256 patches); on an accelerator 1, since its own parallelism runs each chunk already."""
+    if jax.default_backend() != "cpu":
+        return 1
     return max(1, min(4, len(os.sched_getaffinity(0))))
 
 

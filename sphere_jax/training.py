@@ -21,8 +21,11 @@ import optax
 import orbax.checkpoint as ocp
 from tqdm import tqdm
 
-from sphere_jax import api, bundle, models
+from jax.sharding import PartitionSpec as P
+
+from sphere_jax import api, bundle, models, parallel
 from sphere_jax.data import pipeline
+from sphere_jax.data.prefetch import Prefetch
 from sphere_jax.data.generators import synthetic
 
 
@@ -78,6 +81,17 @@ def get_batch(config, source, step, split="train"):
 # State, steps, checkpoints
 # ----------------------------------------------------------------------------------------------
 
+def training_model(config):
+    """The module the trainer differentiates: the config's model on the path ``train.fused``
+    chooses (spectral domain by default; ``False``: the layer-by-layer reference) with its batch
+    norms averaging over the data-parallel axis. Same parameters as :func:`models.build`'s."""
+    model = models.build(config)
+    changes = {"axis_name": parallel.AXIS}
+    if hasattr(model, "fused"):
+        changes["fused"] = bool(config.train.get("fused", True))
+    return model.clone(**changes)
+
+
 def init_state(config, model, tx, example):
     key = jax.random.PRNGKey(config.seed)
     x = example[models.spec(config.model).input_key]
@@ -88,24 +102,47 @@ def init_state(config, model, tx, example):
     return state
 
 
-def make_steps(config, model, tx):
+def make_steps(config, model, tx, mesh=None):
+    """Jitted ``train_step(state, batch) -> (state, metrics)`` and ``eval_step(state, batch) ->
+    metrics`` over ``mesh`` (:mod:`sphere_jax.parallel`; default one device): ``state``
+    replicated, ``batch`` split on its first axis (:func:`parallel.shard_batch`). ``model``:
+    :func:`training_model`'s, whose batch norms average over the mesh axis."""
+    mesh = mesh if mesh is not None else parallel.make_mesh(1)
+    rep, rows = P(), P(parallel.AXIS)
+    # The outputs are replicated by construction (pmean'd gradients and metrics; batch
+    # statistics from pmean'd moments). shard_map's replication typing would also ask every
+    # loop inside the models (fused.pointwise's) to mark its zero-initialised carry as varying.
+    shard = functools.partial(jax.shard_map, mesh=mesh, out_specs=rep, check_vma=False)
+
+    def local_grads(params, batch_stats, batch, rng):
+        # Dropout masks differ per device (as they would per row on one device).
+        rng = jax.random.fold_in(rng, jax.lax.axis_index(parallel.AXIS))
+
+        def f(p):
+            return loss_fn(config, model, {"params": p, "batch_stats": batch_stats}, batch, rng)
+
+        (_, (metrics, stats)), grads = jax.value_and_grad(f, has_aux=True)(params)
+        return (jax.lax.pmean(grads, parallel.AXIS), jax.lax.pmean(metrics, parallel.AXIS),
+                stats)
+
     def train_step(state, batch):
         rng = jax.random.fold_in(jax.random.PRNGKey(config.seed + 1), state["step"])
-        variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
-
-        def f(params):
-            return loss_fn(config, model, {**variables, "params": params}, batch, rng)
-
-        (_, (metrics, stats)), grads = jax.value_and_grad(f, has_aux=True)(state["params"])
+        grads, metrics, stats = shard(local_grads, in_specs=(rep, rep, rows, rep))(
+            state["params"], state["batch_stats"], batch, rng)
         updates, opt_state = tx.update(grads, state["opt_state"], state["params"])
         return {"params": optax.apply_updates(state["params"], updates), "batch_stats": stats,
                 "opt_state": opt_state, "step": state["step"] + 1}, metrics
 
-    def eval_step(state, batch):
-        variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
-        return loss_fn(config, model, variables, batch, jax.random.PRNGKey(0), train=False)[1][0]
+    def local_metrics(params, batch_stats, batch):
+        variables = {"params": params, "batch_stats": batch_stats}
+        metrics = loss_fn(config, model, variables, batch, jax.random.PRNGKey(0), train=False)
+        return jax.lax.pmean(metrics[1][0], parallel.AXIS)
 
-    return jax.jit(train_step), jax.jit(eval_step)
+    def eval_step(state, batch):
+        return shard(local_metrics, in_specs=(rep, rep, rows))(
+            state["params"], state["batch_stats"], batch)
+
+    return jax.jit(train_step, donate_argnums=0), jax.jit(eval_step)
 
 
 def checkpoint_manager(workdir, config):
@@ -139,63 +176,77 @@ def save_bundle(workdir, config, state, training_data=None):
 
 def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress=True,
                        init_variables=None):
-    """Train (resuming from the newest checkpoint in ``workdir``), evaluate, write a bundle.
-    ``init_variables`` (params and batch_stats, e.g. from a bundle) start a fresh run from
-    trained weights (test-time adaptation). Returns the final state and the last metrics."""
+    """Train (resuming from the newest checkpoint in ``workdir``, with any device count),
+    evaluate, write a bundle. ``init_variables`` (params and batch_stats, e.g. from a bundle)
+    start a fresh run from trained weights (test-time adaptation). Returns the final state and
+    the last metrics."""
     os.makedirs(workdir, exist_ok=True)
     source = build_source(config)
     if models.spec(config.model).labelled:
         with config.unlocked():
             config.n_classes = len(source.classes)
-    model = models.build(config)
+    mesh = parallel.make_mesh(config.train.get("devices", 0) or None)
+    parallel.check_batch_size(config.train.batch_size, mesh)
+    model = training_model(config)
     tx = optax.adam(config.train.learning_rate)
     state = init_state(config, model, tx, get_batch(config, source, 0))
     if init_variables is not None:
         state.update(params=init_variables["params"],
                      batch_stats=init_variables.get("batch_stats", {}),
                      opt_state=tx.init(init_variables["params"]))
-    train_step, eval_step = make_steps(config, model, tx)
+    state = parallel.replicate(state, mesh)
+    train_step, eval_step = make_steps(config, model, tx, mesh)
     mngr = checkpoint_manager(workdir, config)
+    main_host = jax.process_index() == 0          # the one that logs and writes the bundle
     metrics_path = os.path.join(workdir, "metrics.jsonl")
     start = 0
     if mngr.latest_step() is not None:
         start = mngr.latest_step()
-        abstract = jax.tree_util.tree_map(ocp.utils.to_shape_dtype_struct, state)
+        sharding = parallel.replicated(mesh)
+        abstract = jax.tree_util.tree_map(
+            lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=sharding), state)
         state = mngr.restore(start, args=ocp.args.StandardRestore(abstract))
-        _truncate_metrics(metrics_path, start)
+        if main_host:
+            _truncate_metrics(metrics_path, start)
     last = {}
-    t_last, seen = time.perf_counter(), 0
-    bar = tqdm(range(start, config.train.steps), initial=start, total=config.train.steps,
-               disable=not progress, desc=f"{config.model}:{config.get('size', '')}")
-    with open(metrics_path, "a") as log:
-        for step in bar:
-            batch = get_batch(config, source, step)
+    t_last, seen, wait_last = time.perf_counter(), 0, 0.0
+    bar = tqdm(total=config.train.steps, initial=start, disable=not (progress and main_host),
+               desc=f"{config.model}:{config.get('size', '')}")
+    make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
+    with open(metrics_path, "a") as log, \
+            Prefetch(make, range(start, config.train.steps)) as batches:
+        for step, batch in batches:
             state, metrics = train_step(state, batch)
             seen += config.train.batch_size
             done = step + 1
+            bar.update(1)
             if done % config.train.log_every == 0 or done == config.train.steps:
+                last = {k: float(v) for k, v in metrics.items()}      # waits for the step
                 now = time.perf_counter()
-                last = {k: float(v) for k, v in metrics.items()}
-                last.update(step=done, patches_per_s=round(seen / (now - t_last), 2))
-                t_last, seen = now, 0
+                last.update(step=done, patches_per_s=round(seen / (now - t_last), 2),
+                            data_wait_frac=round((batches.wait_s - wait_last) / (now - t_last), 4))
+                t_last, seen, wait_last = now, 0, batches.wait_s
                 if done % config.train.eval_every == 0 or done == config.train.steps:
-                    last.update(evaluate(config, source, state, eval_step))
-                log.write(json.dumps(last) + "\n")
-                log.flush()
-                bar.set_postfix(loss=f"{last['loss']:.4f}", pps=last["patches_per_s"])
+                    last.update(evaluate(config, source, state, eval_step, mesh))
+                if main_host:
+                    log.write(json.dumps(last) + "\n")
+                    log.flush()
+                bar.set_postfix(loss=f"{last['loss']:.4f}", pps=last["patches_per_s"],
+                                wait=f"{100 * last['data_wait_frac']:.0f}%")
             if done % config.train.checkpoint_every == 0 or done == config.train.steps:
                 mngr.save(done, args=ocp.args.StandardSave(state))
+    bar.close()
     mngr.wait_until_finished()
-    save_bundle(workdir, config, state, source.statement())
+    if main_host:
+        save_bundle(workdir, config, state, source.statement())
     return state, last
 
 
-def evaluate(config, source, state, eval_step):
-    vals = [eval_step(state, get_batch(config, source, 10_000_000 + k, "val"))
-            for k in range(config.train.eval_batches)]
+def evaluate(config, source, state, eval_step, mesh):
+    vals = [eval_step(state, parallel.shard_batch(
+        get_batch(config, source, 10_000_000 + k, "val"), mesh))
+        for k in range(config.train.eval_batches)]
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}
-
-
 def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True):
     """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND bundle ``trained``
     with its own self-supervised loss on the scans under ``data_root``; the adapted bundle is

@@ -1,4 +1,5 @@
-"""Models suite: forward and training-step time of every config at its configured batch, and
+"""Models suite: forward time of every config at its configured batch (training steps: the
+``train`` suite), and
 LEAD/SOUND description time per keypoint for 5000 keypoints of the 3DMatch kitchen fragment
 (when the real scans are present), with the fused inference path of
 :mod:`sphere_jax.spherical.fused` (the default) and layer by layer (``unfused``), with
@@ -14,16 +15,15 @@ import time
 
 import jax
 import numpy as np
-import optax
 
 from experiments.benchmarks import common
-from sphere_jax import api, models, paths, training
+from sphere_jax import api, models, paths
 from sphere_jax.data import patches
 from sphere_jax.data.readers import io
 
 
 def run(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None, **_):
-    """Forward and training-step time per config and size; description ms per keypoint."""
+    """Forward time per config and size; description ms per keypoint."""
     records = []
     shared = paths.real_data("3dmatch", "7-scenes-redkitchen", "cloud_bin_0.ply")
     down = kp = None
@@ -36,22 +36,14 @@ def run(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None, **_):
         for size in sizes:
             config = importlib.import_module(f"configs.{name}").get_config(size)
             model = models.build(config)
-            tx = optax.adam(config.train.learning_rate)
             bs, n = config.train.batch_size, config.data.n_points
             rng = np.random.default_rng(0)
             p = (rng.normal(size=(bs, n, 3)) * 0.4).astype(np.float32)
-            batch = {"patches": p}
-            if models.spec(config.model).copies:
-                rots = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(bs)])
-                batch.update(copies=p, rotations=rots.astype(np.float32))
-            state = training.init_state(config, model, tx, batch)
-            step, _ = training.make_steps(config, model, tx)
-            variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
+            variables = jax.jit(lambda x: model.init(jax.random.PRNGKey(0), x, train=False))(p)
             fwd = jax.jit(lambda v, x: model.apply(v, x, train=False))
             fwd_ms = common.median_ms(lambda: fwd(variables, p), repeats)
-            step_ms = common.median_ms(lambda: step(state, batch)[1]["loss"], repeats)
             rec = {"config": f"{name}:{size}", "batch": bs, "fwd_ms": round(fwd_ms, 1),
-                   "train_step_ms": round(step_ms, 1), "describe_ms_per_kp": "",
+                   "describe_ms_per_kp": "",
                    "unfused_ms_per_kp": "", "describe_workers": ""}
             # The models with a fused path that describe (LEAD, SOUND): fused vs layer by layer.
             if (hasattr(model, "fused") and models.spec(config.model).describe is not None

@@ -24,12 +24,14 @@ class PointNetClassifier(nn.Module):
     features: Sequence[int] = (64, 64, 64, 128, 1024)
     head: Sequence[int] = (512, 256)
     dropout: float = 0.3
+    axis_name: str | None = None    # data-parallel batch axis of the batch norms
 
     @nn.compact
     def __call__(self, points, train: bool = False):
-        x = PointNetEncoder(self.features)(points, train)
+        x = PointNetEncoder(self.features, self.axis_name)(points, train)
         for width in self.head:
-            x = nn.relu(nn.BatchNorm(use_running_average=not train)(nn.Dense(width)(x)))
+            x = nn.relu(nn.BatchNorm(use_running_average=not train,
+                                              axis_name=self.axis_name)(nn.Dense(width)(x)))
             x = nn.Dropout(self.dropout, deterministic=not train)(x)
         return ClassifyOut(nn.Dense(self.n_classes)(x))
 

@@ -30,13 +30,14 @@ class Compass(nn.Module):
     n_shells: int = 4
     temperature: float = 1.0
     window: float | None = None
-    fused: bool = True          # inference path of sphere_jax.spherical.fused (same outputs)
+    fused: bool = True          # spectral-domain path (sphere_jax.spherical.fused)
+    axis_name: str | None = None    # data-parallel batch axis (layers.GridBatchNorm)
 
     @nn.compact
     def __call__(self, patches, train: bool = False):
         x = PatchSignal(self.bandwidths[0], self.n_shells)(patches)
         maps = SphericalStack(self.features, self.bandwidths, final_relu=False,
-                              fused=self.fused)(x, train)[:, 0]
+                              fused=self.fused, axis_name=self.axis_name)(x, train)[:, 0]
         rot = jax.vmap(lambda m: soft_argmax.soft_argmax_rotation(
             m, self.temperature, self.window))(maps)
         return CompassOut(rot, maps)

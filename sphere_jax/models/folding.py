@@ -20,6 +20,7 @@ class FoldingDecoder(nn.Module):
     """``code [N, D] -> points [N, n_side², 3]`` in [-1, 1]³."""
     n_side: int = 35
     hidden: Sequence[int] = (514, 257, 128)
+    axis_name: str | None = None    # data-parallel batch axis of the batch norms
 
     @nn.compact
     def __call__(self, code, train: bool):
@@ -29,5 +30,6 @@ class FoldingDecoder(nn.Module):
                              jnp.broadcast_to(code[:, None, :], (n, grid.shape[0],
                                                                  code.shape[-1]))], -1)
         for width in self.hidden:
-            x = nn.relu(nn.BatchNorm(use_running_average=not train)(nn.Dense(width)(x)))
+            x = nn.relu(nn.BatchNorm(use_running_average=not train,
+                                              axis_name=self.axis_name)(nn.Dense(width)(x)))
         return jnp.tanh(nn.Dense(3)(x))

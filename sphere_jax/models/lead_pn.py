@@ -23,12 +23,13 @@ class LeadPN(nn.Module):
     features: Sequence[int] = (64, 128, 512)
     decoder_side: int = 35
     decoder_hidden: Sequence[int] = (514, 257, 128)
+    axis_name: str | None = None    # data-parallel batch axis of the batch norms
 
     @nn.compact
     def __call__(self, patches, train: bool = False):
-        code = PointNetEncoder(self.features)(patches, train)
-        return LeadPNOut(code, FoldingDecoder(self.decoder_side, self.decoder_hidden)(code,
-                                                                                      train))
+        code = PointNetEncoder(self.features, self.axis_name)(patches, train)
+        decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden, self.axis_name)
+        return LeadPNOut(code, decoder(code, train))
 
 
 def oriented(batch):

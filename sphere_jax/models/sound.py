@@ -41,32 +41,33 @@ class Sound(nn.Module):
     decoder_hidden: Sequence[int] = (514, 257, 128)
     temperature: float = 1.0
     window: float | None = None
-    fused: bool = True          # inference path of sphere_jax.spherical.fused (same outputs)
+    fused: bool = True          # spectral-domain path (sphere_jax.spherical.fused)
+    axis_name: str | None = None    # data-parallel batch axis (layers.GridBatchNorm)
 
     def setup(self):
         self.signal = PatchSignal(self.s2_bandwidths[0], self.n_shells)
         self.s2 = layers.S2Conv(self.s2_features, *self.s2_bandwidths)
-        self.s2_norm = layers.GridBatchNorm()
+        self.s2_norm = layers.GridBatchNorm(axis_name=self.axis_name)
         # No ReLU after the descriptor layer: it stays band-limited, so rotating it by its LRF
         # (spectrally) is exact (see models/lead.py).
         self.descriptor = SphericalStack(self.descriptor_features, self.descriptor_bandwidths,
                                          s2_first=False, final_relu=False,
-                                         fused=self.fused)
+                                         fused=self.fused, axis_name=self.axis_name)
         self.lrf = SphericalStack(self.lrf_features, self.lrf_bandwidths, s2_first=False,
-                                  final_relu=False, fused=self.fused)
-        self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden)
+                                  final_relu=False, fused=self.fused, axis_name=self.axis_name)
+        self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden,
+                                      axis_name=self.axis_name)
 
     def trunk(self, patches, train):
-        """The shared S2 layer's output: grids ``[N, C, 2B, 2B, 2B]``, or at inference with
-        ``fused`` their spectrum (:mod:`~sphere_jax.spherical.fused`) — at B = 24 the grids of a
-        chunk of
-        256 patches would take 4.5 GB."""
+        """The shared S2 layer's output: grids ``[N, C, 2B, 2B, 2B]``, or with ``fused`` their
+        spectrum (:mod:`~sphere_jax.spherical.fused`) — at B = 24 the grids of a chunk of 256
+        patches would take 4.5 GB."""
         x = self.signal(patches)
-        if train or not self.fused:
+        if not self.fused:
             return nn.relu(self.s2_norm(self.s2(x), train))
         lmax = max(self.descriptor_bandwidths[1], self.lrf_bandwidths[1])
         h = self.s2(fused.analyse(x, self.s2_bandwidths[1], on_so3=False))
-        scale, shift = layers.batch_norm_affine(self.s2_norm, self.s2_features)
+        scale, shift = self.s2_norm(h, train)
         return fused.pointwise(h, scale, shift, lmax)
 
     def __call__(self, patches, train: bool = False):

@@ -22,13 +22,14 @@ class SphericalStack(nn.Module):
     ``bandwidths[i]`` to ``bandwidths[i + 1]``. The first layer is an S2Conv when ``s2_first``;
     ReLU after every layer but the last unless ``final_relu``.
 
-    At inference (``train=False``) with ``fused`` the layers are chained in the spectral domain
-    (:mod:`~sphere_jax.spherical.fused`): same parameters, same outputs to round-off, less memory
-    traffic
-    and fewer multiplications (LEAD 'paper' describes 2.5 times faster on 2 cores). Training
-    uses the layer-by-layer path, whose batch statistics need whole grids. On the fused path
-    the input may also be a :class:`fused.Spectrum` of the input grids (analysed to at least
-    ``bandwidths[1]``), e.g. a trunk shared by two stacks.
+    With ``fused`` (the default, for training and inference) the layers are chained in the
+    spectral domain (:mod:`~sphere_jax.spherical.fused`): the batch statistics come from the
+    spectra (Haar moments, :class:`layers.GridBatchNorm`) and the pointwise step runs in
+    cache-sized blocks that the backward pass recomputes. ``fused=False`` is the layer-by-layer
+    reference on whole grids: same parameters, same outputs and gradients to round-off, several
+    times the memory and time. On the fused path the input may also be a
+    :class:`fused.Spectrum` of the input grids (analysed to at least ``bandwidths[1]``), e.g. a
+    trunk shared by two stacks. ``axis_name``: see :class:`layers.GridBatchNorm`.
     """
     features: Sequence[int]
     bandwidths: Sequence[int]
@@ -36,6 +37,7 @@ class SphericalStack(nn.Module):
     final_relu: bool = True
     grid: str = "near_identity"
     fused: bool = True
+    axis_name: str | None = None
 
     @nn.compact
     def __call__(self, x, train: bool):
@@ -45,12 +47,11 @@ class SphericalStack(nn.Module):
         convs = [(layers.S2Conv if (i == 0 and self.s2_first) else layers.SO3Conv)(
             f, self.bandwidths[i], self.bandwidths[i + 1], self.grid)
             for i, f in enumerate(self.features)]
-        norms = [layers.GridBatchNorm() for _ in self.features]
+        norms = [layers.GridBatchNorm(axis_name=self.axis_name) for _ in self.features]
         last = len(self.features) - 1
-        if train or not self.fused:
+        if not self.fused:
             if isinstance(x, fused.Spectrum):
-                raise ValueError("a spectrum input needs the fused inference path "
-                                 "(fused=True, train=False)")
+                raise ValueError("a spectrum input needs the fused path (fused=True)")
             for i, (conv, norm) in enumerate(zip(convs, norms)):
                 x = norm(conv(x), train)
                 if i < last or self.final_relu:
@@ -62,7 +63,7 @@ class SphericalStack(nn.Module):
             spec = fused.analyse(x, self.bandwidths[1], on_so3=not self.s2_first)
         for i, (conv, norm) in enumerate(zip(convs, norms)):
             h = conv(spec)
-            scale, shift = layers.batch_norm_affine(norm, self.features[i])
+            scale, shift = norm(h, train)
             if i < last:
                 spec = fused.pointwise(h, scale, shift, self.bandwidths[i + 2])
         y = fused.synthesise(h) * scale[:, None, None, None] + shift[:, None, None, None]

@@ -52,9 +52,21 @@ class Spectrum(typing.NamedTuple):
     def n_patches(self) -> int:
         return self.coeffs.shape[-1] // self.channels
 
+    # A block of signals is computed from windows of ``operands`` on their last axis
+    # (``windows(start, size)``: one ``(offset, length)`` each, lengths static) by ``from_pieces``;
+    # :func:`pointwise` differentiates through that split without forming whole-batch grids.
+    def operands(self):
+        return (self.coeffs,)
+
+    def windows(self, start, size: int):
+        return ((start, size),)
+
+    def from_pieces(self, pieces, size: int):
+        return pieces[0]
+
     def block(self, start, size: int):
         """Coefficients of signals ``start .. start + size`` (``start`` may be traced)."""
-        return jax.lax.dynamic_slice_in_dim(self.coeffs, start, size, self.coeffs.ndim - 1)
+        return self.from_pieces(_windows(self.operands(), self.windows(start, size)), size)
 
 
 class S2Product(typing.NamedTuple):
@@ -75,19 +87,28 @@ class S2Product(typing.NamedTuple):
     def n_patches(self) -> int:
         return self.f.n_patches
 
-    def block(self, start, size: int):
-        """Signals ``start .. start + size``: whole patches (``size`` a multiple of the
-        channels) or some channels of one patch (``size`` divides the channels)."""
+    def operands(self):
+        return (self.f.coeffs, self.kernel)
+
+    def windows(self, start, size: int):
+        """Whole patches (``size`` a multiple of the channels: their input signals and the
+        whole kernel) or some channels of one patch (``size`` divides the channels: the
+        patch's input signals and those output channels of the kernel)."""
         c, c_in = self.channels, self.f.channels
         if size % c == 0:
-            count, kernel = size // c, self.kernel
-            f = self.f.block(start // c * c_in, count * c_in)
-        else:
-            f, count = self.f.block(start // c * c_in, c_in), 1
-            kernel = jax.lax.dynamic_slice_in_dim(self.kernel, start % c, size,
-                                                  self.kernel.ndim - 1)
-        h = correlation.s2_spectral_product(f.reshape(f.shape[:-1] + (count, c_in)), kernel)
+            return (start // c * c_in, size // c * c_in), (0, c)
+        return (start // c * c_in, c_in), (start % c, size)
+
+    def from_pieces(self, pieces, size: int):
+        f, kernel = pieces
+        count = max(1, size // self.channels)
+        h = correlation.s2_spectral_product(f.reshape(f.shape[:-1] + (count, self.f.channels)),
+                                            kernel)
         return h.reshape(h.shape[:-2] + (-1,))
+
+    def block(self, start, size: int):
+        """Signals ``start .. start + size`` (see :meth:`windows`)."""
+        return self.from_pieces(_windows(self.operands(), self.windows(start, size)), size)
 
     @property
     def coeffs(self):
@@ -127,6 +148,17 @@ def correlate(f: Spectrum, w, grid, b_out: int):
         return S2Product(f, correlation.s2_kernel_spectrum(w, grid, b_out), w.shape[-1], b_out)
     h = correlation.spectral_product(f.coeffs, f.channels, w, grid, b_out, on_so3=True)
     return Spectrum(h, w.shape[-1], b_out, True)
+
+
+def moments(h):
+    """Haar mean and mean square ``([N, C], [N, C])`` of the SO(3) signals of ``h``
+    (:class:`Spectrum` on SO(3) or :class:`S2Product`), from the spectrum alone
+    (:func:`transforms.so3_moments`): the batch statistics of :class:`layers.GridBatchNorm`."""
+    if not h.on_so3:
+        raise ValueError("moments are of SO(3) signals; got an S2 spectrum")
+    mean, mean_sq = transforms.so3_moments(h.coeffs)
+    shape = (h.n_patches, h.channels)
+    return mean.reshape(shape), mean_sq.reshape(shape)
 
 
 def synthesise(h: Spectrum):
@@ -259,12 +291,59 @@ def _signals_per_block(n_patches, channels, b, block_floats):
     return max([x for x in sizes if x <= target] or [1])
 
 
+def _windows(arrays, windows):
+    """``array[..., offset:offset + length]`` for each array and its window (offset traced)."""
+    return tuple(jax.lax.dynamic_slice_in_dim(a, o, n, a.ndim - 1)
+                 for a, (o, n) in zip(arrays, windows))
+
+
+def _blocked_map(fn, arrays, windows, n_blocks: int, out_shape):
+    """``out[..., i·S:(i+1)·S] = fn(*windows of arrays for block i)`` for i < ``n_blocks``
+    (S = ``out_shape[-1] / n_blocks``), differentiable in ``arrays``.
+
+    Plain autodiff of the loop would store every block's grids for the backward pass — the
+    whole batch's grids, which is what the blocks are there to avoid — and add a full-size
+    cotangent per block. The backward pass here instead recomputes each block's forward
+    (rematerialisation, as ``jax.checkpoint`` does) and adds its cotangents into their windows
+    in place, so memory stays a block's grids plus the spectra."""
+    size = out_shape[-1] // n_blocks
+
+    def forward(arrs):
+        def body(i, out):
+            block = fn(*_windows(arrs, windows(i * size, size)))
+            return jax.lax.dynamic_update_slice_in_dim(out, block, i * size, out.ndim - 1)
+        return jax.lax.fori_loop(0, n_blocks, body, jnp.zeros(out_shape, jnp.float32))
+
+    @jax.custom_vjp
+    def run(arrs):
+        return forward(arrs)
+
+    def run_fwd(arrs):
+        return forward(arrs), arrs
+
+    def run_bwd(arrs, ct):
+        def body(i, cts):
+            spans = windows(i * size, size)
+            _, vjp = jax.vjp(fn, *_windows(arrs, spans))
+            got = vjp(jax.lax.dynamic_slice_in_dim(ct, i * size, size, ct.ndim - 1))
+            out = []
+            for c, g, (o, n) in zip(cts, got, spans):
+                cur = jax.lax.dynamic_slice_in_dim(c, o, n, c.ndim - 1)
+                out.append(jax.lax.dynamic_update_slice_in_dim(c, cur + g, o, c.ndim - 1))
+            return tuple(out)
+        return (jax.lax.fori_loop(0, n_blocks, body, tuple(jnp.zeros_like(a) for a in arrs)),)
+
+    run.defvjp(run_fwd, run_bwd)
+    return run(tuple(arrays))
+
+
 def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
               block_floats: int | None = None) -> Spectrum:
     """``analysis_{lmax_out}(ReLU(scale · synthesis(h) + shift))`` per channel, in cache-sized
-    blocks of signals. ``h``: :class:`Spectrum` or :class:`S2Product`; ``scale_C``,
-    ``shift_C``: ``[C]``; ``block_floats``: grid floats per block (default
-    :data:`BLOCK_FLOATS`)."""
+    blocks of signals; differentiable in ``h``'s arrays, ``scale`` and ``shift``, with the
+    block grids recomputed in the backward pass (:func:`_blocked_map`). ``h``:
+    :class:`Spectrum` or :class:`S2Product`; ``scale_C``, ``shift_C``: ``[C]``;
+    ``block_floats``: grid floats per block (default :data:`BLOCK_FLOATS`)."""
     b, l_in, c = h.bandwidth, h.lmax, h.channels
     transforms.check_sizes(b, lmax_out, "bandwidth")
     tables = tuple(jnp.asarray(t, jnp.float32) for t in _block_tables(b, l_in, lmax_out))
@@ -272,20 +351,23 @@ def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
     size = _signals_per_block(n, c, b, block_floats or BLOCK_FLOATS)
     scale = jnp.tile(jnp.asarray(scale_C, jnp.float32), n)
     shift = jnp.tile(jnp.asarray(shift_C, jnp.float32), n)
-    out = jnp.zeros((2 * lmax_out - 1, lmax_out, lmax_out, 2, n * c), jnp.float32)
+    operands = h.operands()
+    k = len(operands)
 
     # Blocks are sliced off the minor (signal) axis in place: transposing the whole spectrum to
     # put blocks first would cost two extra passes over memory.
-    def body(i, out):
-        start = i * size
-        hb = h.block(start, size)                                      # [m, n, l, s, x]
+    def block(*pieces):
+        hb = h.from_pieces(pieces[:k], size)                           # [m, n, l, s, x]
         hb = jnp.pad(hb, ((0, 0), (0, _even(l_in) - l_in)) + ((0, 0),) * 3)
         hb = hb.reshape(hb.shape[:1] + (-1, 2) + hb.shape[2:])
         fb = _pointwise_block(jnp.transpose(hb, (2, 4, 0, 1, 3, 5)),  # [h, s, m, n', l, x]
-                              jax.lax.dynamic_slice_in_dim(scale, start, size),
-                              jax.lax.dynamic_slice_in_dim(shift, start, size), tables, relu)
+                              pieces[k], pieces[k + 1], tables, relu)
         fb = jnp.transpose(fb, (2, 3, 0, 4, 1, 5))                     # [m, n', h, l, s, x]
-        fb = fb.reshape(fb.shape[:1] + (-1,) + fb.shape[3:])[:, :lmax_out]
-        return jax.lax.dynamic_update_slice_in_dim(out, fb, start, axis=4)
+        return fb.reshape(fb.shape[:1] + (-1,) + fb.shape[3:])[:, :lmax_out]
 
-    return Spectrum(jax.lax.fori_loop(0, n * c // size, body, out), c, b, True)
+    def windows(start, size):
+        return h.windows(start, size) + ((start, size), (start, size))
+
+    out_shape = (2 * lmax_out - 1, lmax_out, lmax_out, 2, n * c)
+    coeffs = _blocked_map(block, operands + (scale, shift), windows, n * c // size, out_shape)
+    return Spectrum(coeffs, c, b, True)

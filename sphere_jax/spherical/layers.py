@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
 
 from sphere_jax.spherical import correlation, fused, transforms
@@ -77,27 +78,75 @@ class SO3Conv(_SphericalConv):
     on_so3 = True
 
 
-class GridBatchNorm(nn.Module):
-    """Batch norm per channel, statistics over the batch and every grid cell (channels first).
+class _HaarStatistics(nn.Module):
+    """The variables of one batch norm (``scale``, ``bias``; running ``mean``, ``var``) and the
+    affine map they define, from per-signal Haar moments ``[N, C]`` (train) or the running
+    statistics (inference)."""
+    momentum: float
+    epsilon: float
+    use_scale: bool
+    axis_name: str | None
 
-    Per-channel affine maps commute with rotations, so the layer keeps equivariance up to the
-    statistics, which are themselves (nearly) rotation invariant.
+    @nn.compact
+    def __call__(self, moments, channels: int, train: bool):
+        ra_mean = self.variable("batch_stats", "mean", jnp.zeros, (channels,), jnp.float32)
+        ra_var = self.variable("batch_stats", "var", jnp.ones, (channels,), jnp.float32)
+        if train:
+            mean, mean_sq = (jnp.mean(m, 0) for m in moments)
+            if self.axis_name is not None:         # data-parallel: the global batch's moments
+                mean, mean_sq = jax.lax.pmean((mean, mean_sq), self.axis_name)
+            var = jnp.maximum(mean_sq - jnp.square(mean), 0.0)
+            if not self.is_initializing():
+                ra_mean.value = self.momentum * ra_mean.value + (1 - self.momentum) * mean
+                ra_var.value = self.momentum * ra_var.value + (1 - self.momentum) * var
+        else:
+            mean, var = ra_mean.value, ra_var.value
+        scale = jax.lax.rsqrt(var + self.epsilon)
+        if self.use_scale:
+            scale = scale * self.param("scale", nn.initializers.ones, (channels,), jnp.float32)
+        shift = self.param("bias", nn.initializers.zeros, (channels,), jnp.float32) - mean * scale
+        return scale, shift
+
+
+class GridBatchNorm(nn.Module):
+    """Batch norm per channel of SO(3) signals with Haar-weighted statistics.
+
+    The batch mean and variance of channel c are taken over the batch and over SO(3) with the
+    Haar measure: ``E[x] = mean_n ∫ x_nc dR``, ``E[x²] = mean_n ∫ x_nc² dR``. For band-limited
+    signals both are exact on the grid (SOFT quadrature) and in the spectrum (degree-0
+    coefficient; Parseval), so the layer-by-layer path (grids) and the fused path (spectra)
+    compute the same statistics without the fused one ever forming a grid. This deliberately
+    departs from s2cnn, whose unweighted mean over the grid cells over-weights the cells near
+    the poles (the SOFT grid is dense in α, γ there) and so changes when the signal rotates;
+    the Haar statistics of a rotated band-limited signal are the same.
+
+    Per-channel affine maps commute with rotations, so the layer keeps equivariance.
+
+    ``__call__(x, train)``: grids ``[N, C, 2B, 2B, 2B]`` in, normalised grids out; or a
+    :class:`fused.Spectrum` / :class:`fused.S2Product` in and the affine map ``(scale [C],
+    shift [C])`` out, which :func:`fused.pointwise` applies on its block grids.
+    ``axis_name``: the mapped axis over which data-parallel training shards the batch (the
+    statistics are then those of the whole batch).
     """
     momentum: float = 0.9
     epsilon: float = 1e-5
     use_scale: bool = True
+    axis_name: str | None = None
 
     @nn.compact
     def __call__(self, x, train: bool):
-        return nn.BatchNorm(use_running_average=not train, axis=1, momentum=self.momentum,
-                            epsilon=self.epsilon, use_scale=self.use_scale)(x)
-
-
-def batch_norm_affine(norm: GridBatchNorm, channels: int):
-    """``(scale [C], shift [C])`` of an inference-mode :class:`GridBatchNorm`, which is affine:
-    read off by applying it to 0 and to 1."""
-    out = norm(jnp.stack([jnp.zeros(channels), jnp.ones(channels)]), train=False)
-    return out[1] - out[0], out[0]
+        spectral = isinstance(x, (fused.Spectrum, fused.S2Product))
+        channels = x.channels if spectral else x.shape[1]
+        moments = None
+        if train:
+            moments = fused.moments(x) if spectral else transforms.so3_grid_moments(x)
+        # Named as flax's nn.BatchNorm child was, so bundles trained with it keep loading.
+        scale, shift = _HaarStatistics(self.momentum, self.epsilon, self.use_scale,
+                                       self.axis_name, name="BatchNorm_0")(moments, channels,
+                                                                          train)
+        if spectral:
+            return scale, shift
+        return x * scale[:, None, None, None] + shift[:, None, None, None]
 
 
 def haar_pool(x):

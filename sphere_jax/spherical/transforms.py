@@ -268,6 +268,30 @@ def rotate_so3(x, rot_33):
     return so3_ifft(rotate_so3_coeffs(so3_fft(x), rot_33), grid_bandwidth(x, 3))
 
 
+def so3_moments(h_MxNxLx2xX):
+    """Haar mean and mean square ``([X], [X])`` of the real SO(3) signals whose internal
+    spectra are ``h`` — exact, with no grid. ``f = Σ f̂^l_{mn} conj(D^l_{mn})`` and
+    ``∫ D^l_{mn} conj(D^l'_{m'n'}) dR / 8π² = δ / (2l+1)`` make the mean the degree-0
+    coefficient and the mean square ``Σ_l Σ_{mn} |f̂^l_{mn}|² / (2l+1)`` (Parseval); the stored
+    half n ≥ 0 counts twice for n > 0 (``|f̂_{-m,-n}| = |f̂_{mn}|``)."""
+    lmax = h_MxNxLx2xX.shape[1]
+    n, l = np.arange(lmax), np.arange(lmax)
+    w = np.where(n == 0, 1.0, 2.0)[:, None] / (2 * l + 1)[None, :]         # [n, l]
+    w = jnp.asarray(w, jnp.float32)
+    mean = h_MxNxLx2xX[lmax - 1, 0, 0, 0]
+    mean_sq = jnp.einsum("mnlrx,nl->x", jnp.square(h_MxNxLx2xX), w)
+    return mean, mean_sq
+
+
+def so3_grid_moments(x):
+    """Haar mean and mean square ``([...], [...])`` of SO(3) signals ``[..., 2B, 2B, 2B]`` by
+    the SOFT quadrature: exact for band-B signals, so they equal :func:`so3_moments` of their
+    spectra (the quadrature integrates products of two band-B functions exactly)."""
+    b = grid_bandwidth(x, 3)
+    w = jnp.asarray(so3.haar_weights(b), jnp.float32)
+    return jnp.einsum("...jag,j->...", x, w), jnp.einsum("...jag,j->...", jnp.square(x), w)
+
+
 def so3_haar_mean(x):
     """Haar mean ``[...]`` of SO(3) signals ``[..., 2B, 2B, 2B]``: exact for band-B signals and
     invariant under rotation of the signal (the invariant pooling of the spherical CNNs)."""

@@ -39,6 +39,24 @@ def test_chamfer_against_brute_force():
     assert bool(jnp.all(jnp.isfinite(g)))
 
 
+def test_chamfer_gradient_equals_that_of_the_dense_minimum():
+    """Batches larger than one search chunk (NN_CHUNK), against autodiff of the dense
+    formula: the gradient goes to each point's nearest neighbour either way."""
+    rng = np.random.default_rng(1)
+    a = jnp.asarray(rng.normal(size=(3, 4, 40, 3)), jnp.float32)
+    b = jnp.asarray(rng.normal(size=(3, 4, 60, 3)), jnp.float32)
+
+    def dense(a, b):
+        d2 = jnp.sum((a[..., :, None, :] - b[..., None, :, :]) ** 2, -1)
+        return jnp.sum(d2.min(-1).mean(-1) + d2.min(-2).mean(-1))
+
+    chunked = lambda a, b: jnp.sum(losses.chamfer_distance(a, b))
+    assert losses.chamfer_distance(a, b).shape == (3, 4) and 3 * 4 > losses.NN_CHUNK
+    np.testing.assert_allclose(chunked(a, b), dense(a, b), rtol=1e-5)
+    for got, want in zip(jax.grad(chunked, (0, 1))(a, b), jax.grad(dense, (0, 1))(a, b)):
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-7)
+
+
 def test_bad_inputs():
     with pytest.raises(ValueError, match="pred_x33 and target_x33"):
         losses.geodesic_loss(jnp.eye(3)[None], jnp.eye(3))

@@ -68,14 +68,14 @@ def test_stack_fused_equals_layer_by_layer(s2_first, final_relu):
     assert jax.tree_util.tree_structure(plain) == jax.tree_util.tree_structure(variables)
 
 
-def test_batch_norm_affine_matches_module():
+def test_batch_norm_of_a_spectrum_is_its_affine_map():
     rng = np.random.default_rng(3)
     x = jnp.asarray(rng.normal(size=(2, 3, 4, 4, 4)), jnp.float32)
     norm = layers.GridBatchNorm()
     v = norm.init(jax.random.PRNGKey(0), x, train=False)
     v = {"params": v["params"], "batch_stats": {"BatchNorm_0": {
         "mean": jnp.array([0.1, -0.2, 0.3]), "var": jnp.array([0.5, 2.0, 1.5])}}}
-    scale, shift = norm.apply(v, 3, method=lambda m, c: layers.batch_norm_affine(m, c))
+    scale, shift = norm.apply(v, fused.analyse(x, 2, on_so3=True), train=False)
     want = norm.apply(v, x, train=False)
     assert rel_err(x * scale[:, None, None, None] + shift[:, None, None, None], want) < 1e-6
 
@@ -122,5 +122,50 @@ def test_spectrum_input_needs_the_fused_path():
     stack = SphericalStack((2,), (8, 6), s2_first=False, fused=False)
     h = fused.analyse(jax.nn.relu(transforms.so3_ifft(
         reference.random_so3_coeffs(rng, (1, 2), 6), 8)), 6, True)
-    with pytest.raises(ValueError, match="needs the fused inference path"):
+    with pytest.raises(ValueError, match="needs the fused path"):
         stack.init(jax.random.PRNGKey(0), h, train=False)
+
+
+@pytest.mark.parametrize("block_floats", [1, 2 * 3 * 12 ** 3, 10 ** 9])
+def test_pointwise_gradients_equal_autodiff_of_whole_grids(block_floats):
+    """The blocked backward pass (recomputed block grids) against JAX's gradient of synthesis
+    -> affine -> ReLU -> analysis on whole grids, for a spectrum and for an S2 product (whose
+    kernel, the layer's weights, gets the gradient)."""
+    rng = np.random.default_rng(6)
+    n, c, b, l_out = 4, 3, 6, 4
+    h = _spectrum(rng, n, c, b, b)
+    scale, shift = jnp.asarray(rng.normal(size=c)), jnp.asarray(rng.normal(size=c))
+    probe = jnp.asarray(rng.normal(size=(2 * l_out - 1, l_out, l_out, 2, n * c)), jnp.float32)
+
+    def whole(coeffs, scale, shift):
+        grid = fused.synthesise(h._replace(coeffs=coeffs)) * scale[:, None, None, None] \
+            + shift[:, None, None, None]
+        flat = jax.nn.relu(grid).reshape((n * c,) + grid.shape[2:])
+        return jnp.sum(transforms.so3_analysis(flat, l_out) * probe)
+
+    def blocked(coeffs, scale, shift):
+        out = fused.pointwise(h._replace(coeffs=coeffs), scale, shift, l_out,
+                              block_floats=block_floats)
+        return jnp.sum(out.coeffs * probe)
+
+    want = jax.grad(whole, (0, 1, 2))(h.coeffs, scale, shift)
+    got = jax.jit(jax.grad(blocked, (0, 1, 2)))(h.coeffs, scale, shift)
+    for g, w in zip(got, want):
+        assert rel_err(g, w) < 1e-5
+
+    x = transforms.s2_ifft(reference.random_s2_coeffs(rng, (n, 2), b), b)
+    f = fused.analyse(x, b, on_so3=False)
+    grid = correlation.make_grid("near_identity", on_so3=False)
+    w0 = jnp.asarray(rng.normal(size=grid.shape + (2, c)), jnp.float32)
+
+    def s2_whole(w):
+        y = correlation.s2_correlate(x, w, grid, b) * scale[:, None, None, None]
+        flat = jax.nn.relu(y + shift[:, None, None, None]).reshape((n * c,) + y.shape[2:])
+        return jnp.sum(transforms.so3_analysis(flat, l_out) * probe)
+
+    def s2_blocked(w):
+        out = fused.pointwise(fused.correlate(f, w, grid, b), scale, shift, l_out,
+                              block_floats=block_floats)
+        return jnp.sum(out.coeffs * probe)
+
+    assert rel_err(jax.jit(jax.grad(s2_blocked))(w0), jax.grad(s2_whole)(w0)) < 1e-5

@@ -46,15 +46,50 @@ def test_activations_keep_unit_order_through_five_layers():
 
 
 def test_batch_norm_and_haar_pool():
+    """Training-mode output has Haar mean 0 and Haar variance 1 per channel; the running
+    statistics take one momentum step towards the batch's."""
     x = 3.0 + 2.0 * jax.random.normal(jax.random.PRNGKey(0), (4, 5, 6, 6, 6))
     bn = layers.GridBatchNorm()
     variables = bn.init(jax.random.PRNGKey(1), x, train=True)
     y, updates = bn.apply(variables, x, train=True, mutable=["batch_stats"])
-    per_channel = jnp.moveaxis(y, 1, 0).reshape(5, -1)
-    assert float(jnp.abs(per_channel.mean(1)).max()) < 1e-4
-    assert float(jnp.abs(per_channel.std(1) - 1).max()) < 1e-3
-    assert updates["batch_stats"]["BatchNorm_0"]["mean"].shape == (5,)
+    mean, mean_sq = (m.mean(0) for m in transforms.so3_grid_moments(y))
+    assert float(jnp.abs(mean).max()) < 1e-4
+    assert float(jnp.abs(mean_sq - 1).max()) < 1e-3
+    x_mean = transforms.so3_grid_moments(x)[0].mean(0)
+    stats = updates["batch_stats"]["BatchNorm_0"]
+    assert rel_err(stats["mean"], 0.1 * x_mean) < 1e-5
     assert layers.haar_pool(x).shape == (4, 5)
+
+
+def test_haar_moments_of_spectrum_and_grid_agree_and_ignore_rotation():
+    """Degree-0 coefficient and Parseval sum against the SOFT quadrature on the grid, before
+    and after rotating the band-limited signals; s2cnn's plain grid mean changes instead."""
+    rng = np.random.default_rng(7)
+    b = 6
+    x = transforms.so3_ifft(reference.random_so3_coeffs(rng, (3, 4), b), b)
+    spectral = lambda x: transforms.so3_moments(
+        transforms.so3_analysis(x.reshape((-1,) + x.shape[2:]), b))
+    m0, s0 = spectral(x)
+    g0, q0 = transforms.so3_grid_moments(x)
+    assert rel_err(m0, g0.reshape(-1)) < 1e-5 and rel_err(s0, q0.reshape(-1)) < 1e-5
+    rot = so3.random_rotation(jax.random.PRNGKey(3))
+    xr = transforms.rotate_so3(x, rot)
+    g1, q1 = transforms.so3_grid_moments(xr)
+    assert rel_err(g1, g0) < 1e-5 and rel_err(q1, q0) < 1e-5
+    plain = lambda x: x.mean((-3, -2, -1))
+    assert rel_err(plain(xr), plain(x)) > 1e-2
+
+
+def test_batch_norm_statistics_unchanged_by_rotation():
+    rng = np.random.default_rng(8)
+    b = 6
+    x = transforms.so3_ifft(reference.random_so3_coeffs(rng, (3, 4), b), b)
+    bn = layers.GridBatchNorm()
+    v = bn.init(jax.random.PRNGKey(0), x, train=True)
+    stats = lambda x: bn.apply(v, x, train=True, mutable=["batch_stats"])[1]["batch_stats"]
+    rot = so3.random_rotation(jax.random.PRNGKey(4))
+    a, r = stats(x)["BatchNorm_0"], stats(transforms.rotate_so3(x, rot))["BatchNorm_0"]
+    assert rel_err(r["mean"], a["mean"]) < 1e-5 and rel_err(r["var"], a["var"]) < 1e-5
 
 
 def test_gradients_are_finite():
