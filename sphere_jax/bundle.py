@@ -16,6 +16,7 @@ import json
 import os
 import shutil
 
+import jax
 import ml_collections
 import orbax.checkpoint as ocp
 
@@ -36,15 +37,20 @@ def save(path, config, variables, training_data=None):
     ``variables``: ``{'params', 'batch_stats'}``; ``training_data``: a JSON-able statement of
     the training data (see :meth:`sphere_jax.data.pipeline.PatchSource.statement`)."""
     path = os.path.abspath(str(path))
-    os.makedirs(path, exist_ok=True)
+    # In a multi-host run every process calls this (orbax's save is collective); the files
+    # themselves are written by process 0.
+    primary = jax.process_index() == 0
     target = os.path.join(path, VARIABLES)
-    if os.path.exists(target):
-        shutil.rmtree(target)
+    if primary:
+        os.makedirs(path, exist_ok=True)
+        if os.path.exists(target):
+            shutil.rmtree(target)
     with ocp.StandardCheckpointer() as ckpt:
         ckpt.save(target, variables)
-    _write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
-    if training_data is not None:
-        _write_json(os.path.join(path, TRAINING_DATA), json.dumps(training_data, indent=1))
+    if primary:
+        _write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
+        if training_data is not None:
+            _write_json(os.path.join(path, TRAINING_DATA), json.dumps(training_data, indent=1))
     return path
 
 

@@ -197,7 +197,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     state = parallel.replicate(state, mesh)
     train_step, eval_step = make_steps(config, model, tx, mesh)
     mngr = checkpoint_manager(workdir, config)
-    main_host = jax.process_index() == 0          # the one that logs and writes the bundle
+    main_host = jax.process_index() == 0          # the one that logs
     metrics_path = os.path.join(workdir, "metrics.jsonl")
     start = 0
     if mngr.latest_step() is not None:
@@ -237,8 +237,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
                 mngr.save(done, args=ocp.args.StandardSave(state))
     bar.close()
     mngr.wait_until_finished()
-    if main_host:
-        save_bundle(workdir, config, state, source.statement())
+    save_bundle(workdir, config, state, source.statement())
     return state, last
 
 

@@ -1,6 +1,7 @@
 """Data-parallel training over a mesh of host devices (two CPU devices, forced through
 XLA_FLAGS in child processes: the device count is fixed when JAX starts)."""
 import os
+import socket
 import subprocess
 import sys
 
@@ -28,25 +29,56 @@ def _frame_parameters(params):
 
 
 def child_main():
-    """In the child: ROOT WORKDIR DEVICES STEPS -> WORKDIR/params.npy."""
+    """In the child: ROOT WORKDIR DEVICES STEPS [COORDINATOR PROCESSES ID] ->
+    WORKDIR/params.npy (in a multi-host run, WORKDIR/params_ID.npy)."""
     import pathlib
     from sphere_jax import training
     root, workdir, devices, steps = sys.argv[1:5]
+    out = "params.npy"
+    if len(sys.argv) > 5:
+        coordinator, processes, pid = sys.argv[5:8]
+        parallel.initialize(coordinator, int(processes), int(pid))
+        out = f"params_{pid}.npy"
     c = tiny("compass", pathlib.Path(root), steps=int(steps), checkpoint_every=2,
              eval_every=100, log_every=1)
     c.train.devices = int(devices)
     state, _ = training.train_and_evaluate(c, workdir, progress=False)
-    np.save(os.path.join(workdir, "params.npy"), _frame_parameters(state["params"]))
+    np.save(os.path.join(workdir, out), _frame_parameters(state["params"]))
+
+
+def _child(root, workdir, devices, steps, *hosts, host_devices=2):
+    env = {**os.environ,
+           "XLA_FLAGS": f"--xla_force_host_platform_device_count={host_devices}"}
+    code = "from tests.test_parallel import child_main; child_main()"
+    return subprocess.Popen([sys.executable, "-c", code, str(root), str(workdir), str(devices),
+                             str(steps), *map(str, hosts)], cwd=REPO, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def _train(root, workdir, devices, steps):
     """Train the tiny Compass config in a child process that has two host devices."""
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    code = "from tests.test_parallel import child_main; child_main()"
-    out = subprocess.run([sys.executable, "-c", code, str(root), str(workdir), str(devices),
-                          str(steps)], cwd=REPO, env=env, capture_output=True, text=True)
-    assert out.returncode == 0, out.stderr[-3000:]
+    proc = _child(root, workdir, devices, steps)
+    _, err = proc.communicate()
+    assert proc.returncode == 0, err[-3000:]
     return np.load(os.path.join(workdir, "params.npy"))
+
+
+def test_two_hosts_equal_one_host_with_two_devices(small_root_parallel, tmp_path):
+    """Two processes of one CPU device each, joined by jax.distributed on localhost, sharing
+    a workdir: the same parameters, bitwise, as one process with two devices."""
+    with socket.socket() as s:                       # a free port for the coordinator
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    hosts = [_child(small_root_parallel, tmp_path / "hosts", 1, 4, f"localhost:{port}", 2, i,
+                    host_devices=1) for i in range(2)]
+    for proc in hosts:
+        _, err = proc.communicate(timeout=600)
+        assert proc.returncode == 0, err[-3000:]
+    first, second = (np.load(tmp_path / "hosts" / f"params_{i}.npy") for i in range(2))
+    np.testing.assert_array_equal(first, second)
+    np.testing.assert_array_equal(first, _train(small_root_parallel, tmp_path / "one", 2, 4))
+    assert (tmp_path / "hosts" / "bundle" / "config.json").is_file()
+    assert len((tmp_path / "hosts" / "metrics.jsonl").read_text().splitlines()) == 4
 
 
 def _rel(a, b):
