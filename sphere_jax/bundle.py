@@ -18,6 +18,7 @@ import shutil
 
 import jax
 import ml_collections
+import numpy as np
 import orbax.checkpoint as ocp
 
 CONFIG = "config.json"
@@ -46,7 +47,8 @@ def save(path, config, variables, training_data=None):
         if os.path.exists(target):
             shutil.rmtree(target)
     with ocp.StandardCheckpointer() as ckpt:
-        ckpt.save(target, variables)
+        # Host copies: a bundle does not depend on the devices it was trained on.
+        ckpt.save(target, jax.tree_util.tree_map(np.asarray, variables))
     if primary:
         _write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
         if training_data is not None:
@@ -68,8 +70,16 @@ def read_config(path) -> ml_collections.ConfigDict:
 
 
 def read_variables(path) -> dict:
+    """The bundle's ``{'params', 'batch_stats'}`` on this process's default device, whatever
+    devices they were saved from."""
+    target = os.path.join(os.path.abspath(str(path)), VARIABLES)
     with ocp.StandardCheckpointer() as ckpt:
-        return ckpt.restore(os.path.join(os.path.abspath(str(path)), VARIABLES))
+        meta = ckpt.metadata(target)
+        tree = getattr(meta, "item_metadata", meta)
+        device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+        abstract = jax.tree_util.tree_map(
+            lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
+        return ckpt.restore(target, abstract)
 
 
 def read_training_data(path) -> dict:
