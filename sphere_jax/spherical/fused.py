@@ -1,14 +1,17 @@
-"""Inference-time fusion of a spherical CNN: layers chained in the spectral domain.
+"""A spherical CNN with its layers chained in the spectral domain, for inference and training.
 
 Between two correlations the network leaves the spectral domain only for its pointwise step
-(batch norm, which at inference is a per-channel affine map, and ReLU)::
+(batch norm — a per-channel affine map once its statistics are known, which :func:`moments`
+takes from the spectrum — and ReLU)::
 
     spectrum h (bandwidth B) -> SO(3) synthesis -> a·x + b, ReLU -> analysis to L' -> next product
 
 That step acts on every (patch, channel) signal on its own, so it runs in blocks of signals
-whose grids stay in the CPU cache. A layer-by-layer forward pass instead writes every grid to
-memory and reads it back several times (for 40 channels at B = 16 that is 5 MB per patch), and
-on a CPU it is memory bandwidth, not arithmetic, that bounds these transforms.
+whose grids stay in the CPU cache, and the backward pass recomputes them block by block
+(:func:`_blocked_map`). A layer-by-layer pass instead writes every grid to memory and reads it
+back several times (for 40 channels at B = 16 that is 5 MB per patch). At inference that
+traffic bounds the transforms on a CPU (LEAD 'paper' describes 2.6× faster fused); a training
+step at 'paper' size is bound by the transforms' arithmetic on both paths (README, Performance).
 
 Inside a block the layouts differ from :mod:`transforms`: spectra are ``[h, 2(re/im),
 2L-1(m), L/2(n'), L(l), x]`` with n = 2n' + h, and grids ``[2, 2, B, B, 2B(β), x]``, so that
