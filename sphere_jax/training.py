@@ -1,10 +1,11 @@
 """Training: model and loss per experiment, the train loop, checkpoints and bundles.
 
 ``train_and_evaluate(config, workdir)`` is what ``python -m experiments.train`` runs:
-deterministic batches (a function of seed and step), a jitted step, a tqdm bar with loss and
-patches/s, metrics in ``workdir/metrics.jsonl``, orbax checkpoints every
-``train.checkpoint_every`` steps with automatic resume, and at the end an inference bundle
-(``workdir/bundle``: variables + config) that :mod:`sphere_jax.api` loads.
+deterministic batches (a function of seed and step) built in a background thread, a jitted
+data-parallel step over the devices (:mod:`sphere_jax.parallel`), a tqdm bar with loss,
+patches/s and the data-wait share, metrics in ``workdir/metrics.jsonl``, orbax checkpoints every
+``train.checkpoint_every`` steps with automatic resume (on any device count), and at the end an
+inference bundle (``workdir/bundle``: variables + config) that :mod:`sphere_jax.api` loads.
 """
 from __future__ import annotations
 
@@ -19,14 +20,13 @@ import ml_collections
 import numpy as np
 import optax
 import orbax.checkpoint as ocp
-from tqdm import tqdm
-
 from jax.sharding import PartitionSpec as P
+from tqdm import tqdm
 
 from sphere_jax import api, bundle, models, parallel
 from sphere_jax.data import pipeline
-from sphere_jax.data.prefetch import Prefetch
 from sphere_jax.data.generators import synthetic
+from sphere_jax.data.prefetch import Prefetch
 
 
 # ----------------------------------------------------------------------------------------------
