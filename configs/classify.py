@@ -18,11 +18,12 @@ def get_config(arg=None):
     c = common.base(size)
     c.model = "classify"
     c.orient_bundle = ""              # a whole-shape Compass bundle: shapes in its frames
-    c.data.n_points = {"paper": 2048, "cpu": 512, "tiny": 64}[size]
+    c.data.n_points = {"paper": 2048, "mid": 1024, "cpu": 512, "tiny": 64}[size]
     c.data.rotate = False            # train in canonical pose
-    c.train.batch_size = {"paper": 32, "cpu": 16, "tiny": 4}[size]
+    c.train.batch_size = {"paper": 32, "mid": 32, "cpu": 16, "tiny": 4}[size]
     c.model_kwargs = {
         "paper": dict(features=(64, 64, 64, 128, 1024), head=(512, 256)),
+        "mid": dict(features=(64, 64, 64, 128, 512), head=(256, 128)),
         "cpu": dict(features=(64, 64, 128, 256), head=(128, 64)),
         "tiny": dict(features=(8, 8, 16), head=(8,)),
     }[size]

@@ -15,6 +15,7 @@ def get_config(arg=None):
     c.model = "compass"
     c.model_kwargs = {
         "paper": dict(bandwidths=(24, 24, 24, 24, 24), features=(40, 20, 10, 1)),
+        "mid": dict(bandwidths=(12, 12, 12, 12, 12), features=(40, 20, 10, 1)),
         "cpu": dict(bandwidths=(8, 8, 8, 8, 8), features=(16, 8, 4, 1)),
         "tiny": dict(bandwidths=(4, 4, 4, 4, 4), features=(4, 2, 2, 1)),
     }[size]

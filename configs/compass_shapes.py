@@ -14,5 +14,5 @@ from configs import compass
 def get_config(arg=None):
     c = compass.get_config(arg)
     c.data.shapes = True
-    c.data.n_points = {"paper": 2048, "cpu": 512, "tiny": 64}[c.size]
+    c.data.n_points = {"paper": 2048, "mid": 1024, "cpu": 512, "tiny": 64}[c.size]
     return c

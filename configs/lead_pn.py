@@ -12,9 +12,10 @@ def get_config(arg=None):
     size = common.check_size(arg)
     c = common.base(size)
     c.model = "lead_pn"
-    c.train.batch_size = {"paper": 100, "cpu": 16, "tiny": 4}[size]
+    c.train.batch_size = {"paper": 100, "mid": 32, "cpu": 16, "tiny": 4}[size]
     c.model_kwargs = {
         "paper": dict(features=(64, 128, 512)),
+        "mid": dict(features=(64, 128, 512)),
         "cpu": dict(features=(64, 128, 512)),
         "tiny": dict(features=(8, 8, 16)),
     }[size]

@@ -58,8 +58,12 @@ def build_source(config):
     if models.spec(config.model).labelled or d.get("shapes", False):
         root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
         return pipeline.ShapeSource(root, d.n_points, config.seed)
-    return pipeline.PatchSource(pipeline.scan_paths(d.root), d.voxel, d.keypoint_leaf, d.radius,
-                                d.n_points, d.min_points, d.val_fraction, config.seed)
+    groups = pipeline.scan_groups(d.root)
+    return pipeline.PatchSource([p for g in groups for p in g], d.voxel, d.keypoint_leaf,
+                                d.radius, d.n_points, d.min_points, d.val_fraction, config.seed,
+                                groups=[k for k, g in enumerate(groups) for _ in g],
+                                weights=pipeline.parse_weights(d.get("root_weights", ""),
+                                                               len(groups)))
 
 
 def get_batch(config, source, step, split="train"):

@@ -12,17 +12,22 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import paths
-from sphere_jax.data import augment, patches
-from sphere_jax.data.readers import io
+from sphere_jax.data import augment, fusion, patches
+from sphere_jax.data.readers import io, rgbd
 from sphere_jax.data.generators import synthetic
 
 
 def find_scans(root):
-    """Scan files under ``root``: 3DMatch fragments (``cloud_bin_K.ply``) if there are any,
-    else every .ply / .pcd, recursively (sorted)."""
+    """Scan files under ``root``: a scan file itself; the fused fragments of a posed RGB-D
+    sequence (:mod:`sphere_jax.data.fusion`); 3DMatch fragments (``cloud_bin_K.ply``) if there
+    are any; else every .ply / .pcd, recursively (sorted)."""
     root = str(root)
+    if os.path.isfile(root) and root.endswith((".ply", ".pcd")):
+        return [root]
     if not os.path.isdir(root):
-        raise FileNotFoundError(f"data root {root!r} is not a folder")
+        raise FileNotFoundError(f"data root {root!r} is neither a scan file nor a folder")
+    if rgbd.is_frame_sequence(root):
+        return fusion.sequence_fragments(root)
     frags = sorted(glob.glob(os.path.join(root, "**", "cloud_bin_*.ply"), recursive=True))
     if frags:
         return frags
@@ -33,13 +38,32 @@ def find_scans(root):
     return found
 
 
-def scan_paths(roots):
-    """Scan files of a comma-separated list of folders; ``embedded`` (or an empty list) stands
-    for the default synthetic scans, so real scans can be added to them:
-    ``embedded,/data/3dmatch/demo``."""
+def scan_groups(roots):
+    """Scan files of each entry of a comma-separated list of folders (or scan files), one list
+    per entry; ``embedded`` (or an empty list) stands for the default synthetic scans, so real
+    scans can be added to them: ``embedded,/data/3dmatch/demo``."""
     names = [r.strip() for r in str(roots).split(",") if r.strip()] or ["embedded"]
-    return [p for r in names
-            for p in find_scans(default_scan_root() if r == "embedded" else r)]
+    return [find_scans(default_scan_root() if r == "embedded" else r) for r in names]
+
+
+def scan_paths(roots):
+    """The scan files of :func:`scan_groups`, in one list."""
+    return [p for group in scan_groups(roots) for p in group]
+
+
+def parse_weights(text, n_groups):
+    """``data.root_weights``: '' (every keypoint equally likely) or one non-negative number per
+    entry of ``data.root`` (the share of each entry's keypoints in a batch), normalised."""
+    if not str(text).strip():
+        return None
+    try:
+        w = np.array([float(x) for x in str(text).split(",")], np.float64)
+    except ValueError:
+        raise ValueError(f"data.root_weights must be comma-separated numbers, got {text!r}")
+    if len(w) != n_groups or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError(f"data.root_weights must be {n_groups} finite non-negative numbers "
+                         f"(one per data.root entry) with a positive sum, got {text!r}")
+    return w / w.sum()
 
 
 def default_scan_root():
@@ -50,7 +74,10 @@ class PatchSource:
     """Keypoints of a set of scans and deterministic batches of unit-ball patches."""
 
     def __init__(self, scan_paths, voxel, keypoint_leaf, radius, n_points, min_points,
-                 val_fraction=0.1, seed=0):
+                 val_fraction=0.1, seed=0, groups=None, weights=None):
+        """``groups`` (one int per scan) and ``weights`` (one share per group) draw a batch's
+        keypoints group by group (e.g. as much real as synthetic data); without them every
+        keypoint is equally likely."""
         self.radius, self.n_points, self.min_points = radius, n_points, min_points
         self.seed, self.scan_paths = seed, list(scan_paths)
         self.clouds, self.trees, index = [], [], []
@@ -70,6 +97,15 @@ class PatchSource:
         order = np.random.default_rng(seed).permutation(len(index))
         n_val = int(round(val_fraction * len(index))) if len(index) > 1 else 0
         self.splits = {"val": index[order[:n_val]], "train": index[order[n_val:]]}
+        self.weights = None if weights is None else np.asarray(weights, np.float64)
+        if self.weights is not None:
+            groups = np.asarray(groups, np.int64)
+            self.by_group = {k: [v[groups[v[:, 0]] == g] for g in range(len(self.weights))]
+                             for k, v in self.splits.items()}
+            empty = [g for g, w in enumerate(self.weights)
+                     if w > 0 and len(self.by_group["train"][g]) == 0]
+            if empty:
+                raise ValueError(f"data.root entries {empty} have a weight but no keypoint")
 
     def __len__(self):
         return len(self.splits["train"])
@@ -78,19 +114,30 @@ class PatchSource:
         """What this source trains on, for the bundle: scans per folder, keypoints per split."""
         folders = {}
         for path in self.scan_paths:
-            folder = paths.portable(os.path.dirname(path))
+            rgbd_folder = fusion.fused_source(os.path.dirname(path))
+            folder = (paths.portable(rgbd_folder) + " (fused RGB-D)" if rgbd_folder
+                      else paths.portable(os.path.dirname(path)))
             folders[folder] = folders.get(folder, 0) + 1
         return {"kind": "scans", "folders": folders,
                 "keypoints": {k: int(len(v)) for k, v in self.splits.items()}}
 
-    def batch(self, step, batch_size, split="train", copies=False, occlusion=True):
-        """``{'patches': [B, N, 3]}`` in units of the radius; with ``copies``, also
-        ``'copies'`` (each patch rotated by ``'rotations'`` [B, 3, 3], occluded, resampled)."""
+    def draw(self, rng: np.random.Generator, batch_size, split="train"):
+        """``[B, 2]`` (scan, point index) keypoints of one batch of ``split``."""
         pool = self.splits[split]
         if len(pool) == 0:
             raise ValueError(f"the {split!r} split is empty")
+        if self.weights is None:
+            return pool[rng.integers(0, len(pool), batch_size)]
+        pools = self.by_group[split]
+        w = np.array([wg if len(p) else 0.0 for wg, p in zip(self.weights, pools)])
+        g = rng.choice(len(w), batch_size, p=w / w.sum())
+        return np.stack([pools[k][rng.integers(len(pools[k]))] for k in g])
+
+    def batch(self, step, batch_size, split="train", copies=False, occlusion=True):
+        """``{'patches': [B, N, 3]}`` in units of the radius; with ``copies``, also
+        ``'copies'`` (each patch rotated by ``'rotations'`` [B, 3, 3], occluded, resampled)."""
         rng = np.random.default_rng([self.seed, step, 0 if split == "train" else 1])
-        picks = pool[rng.integers(0, len(pool), batch_size)]
+        picks = self.draw(rng, batch_size, split)
         out = np.empty((batch_size, self.n_points, 3), np.float32)
         for s in np.unique(picks[:, 0]):
             rows = np.nonzero(picks[:, 0] == s)[0]

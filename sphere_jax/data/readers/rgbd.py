@@ -145,3 +145,41 @@ def read_object_frames(folder) -> list[ObjectFrame]:
                                read_image(s + ".depth.png"), read_image(s + ".mask.png"),
                                read_pose(s + ".pose.txt"), k, labels))
     return out
+
+
+@dataclasses.dataclass
+class FrameSequence:
+    """A posed RGB-D sequence: per frame ``color`` / ``depth`` image paths and the 4×4
+    camera-to-world ``poses [F, 4, 4]``, with the pinhole ``intrinsics``."""
+    folder: str
+    color: list
+    depth: list
+    poses: np.ndarray
+    intrinsics: np.ndarray
+
+    def __len__(self):
+        return len(self.depth)
+
+
+def is_frame_sequence(folder) -> bool:
+    return bool(glob.glob(os.path.join(str(folder), "frame-*.depth.png")))
+
+
+def read_frame_sequence(folder) -> FrameSequence:
+    """A folder in the 3DMatch toolbox layout: ``frame-N.{color,depth}.png`` and
+    ``frame-N.pose.txt``, with ``camera-intrinsics.txt`` in the folder or its parent."""
+    folder = str(folder)
+    stems = sorted(p[:-len(".depth.png")]
+                   for p in glob.glob(os.path.join(folder, "frame-*.depth.png")))
+    if not stems:
+        raise DataError(folder, "no frame-N.depth.png frames")
+    k_path = next((p for p in (os.path.join(folder, "camera-intrinsics.txt"),
+                               os.path.join(os.path.dirname(os.path.abspath(folder)),
+                                            "camera-intrinsics.txt")) if os.path.isfile(p)),
+                  None)
+    if k_path is None:
+        raise DataError(folder, "no camera-intrinsics.txt in the folder or its parent")
+    color = [s + ".color.png" if os.path.isfile(s + ".color.png") else None for s in stems]
+    return FrameSequence(folder, color, [s + ".depth.png" for s in stems],
+                         np.stack([read_pose(s + ".pose.txt") for s in stems]),
+                         read_intrinsics(k_path))
