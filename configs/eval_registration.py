@@ -18,7 +18,7 @@ from configs import eval_common
 def get_config(arg=None):
     c = eval_common.base(arg)
     c.task = "registration"
-    c.methods = "fpfh,shot,spin,lead,lead_compass,sound"
+    c.methods = "fpfh,shot,spin,usc,lead,lead_compass,lead_pn,sound"
     c.fpfh_radius = 0.15              # FPFH's own neighbourhood (its support reaches 2x this)
     c.tau1, c.tau2 = 0.10, 0.05
     c.ransac_distance = 0.05

@@ -220,6 +220,43 @@ def toldi_lrf_loop(points, centre, radius):
     return np.stack([x, np.cross(z, x), z], 1)
 
 
+def threedsn_lrf_loop(points, centre, radius):
+    """3DSmoothNet's frame: ẑ from the scatter of the whole support about the keypoint."""
+    d, r, _ = _neighbours(points, centre, radius)
+    _, vecs = np.linalg.eigh(d.T @ d)
+    z = vecs[:, 0]
+    if np.sum(d @ z) > 0:
+        z = -z
+    x = np.zeros(3)
+    for di, ri in zip(d, r):
+        h = di @ z
+        x += ((radius - ri) * h) ** 2 * (di - h * z)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], 1)
+
+
+def usc_loop(points, centre, radius, frame, radial=10, elevation=14, azimuth=14):
+    """USC of one keypoint as PCL computes it: log-spaced shells from R/10, equal-angle
+    elevation and azimuth bins, votes 1 / (density within R/5 · cube root of bin volume)."""
+    d, r, idx = _neighbours(points, centre, radius)
+    shells = [np.exp(np.log(0.1 * radius) + j / radial * np.log(10.0)) for j in range(radial + 1)]
+    hist = np.zeros((azimuth, elevation, radial))
+    for di, ri, k in zip(d, r, idx):
+        x, y, z = frame.T @ di
+        j = next((n for n in range(radial) if ri <= shells[n + 1]), radial - 1)
+        theta = np.degrees(np.arccos(np.clip(z / ri, -1, 1)))
+        phi = np.degrees(np.arctan2(y, x)) % 360.0
+        e = min(int(theta // (180.0 / elevation)), elevation - 1)
+        a = min(int(phi // (360.0 / azimuth)), azimuth - 1)
+        vol = ((shells[j + 1] ** 3 - shells[j] ** 3) / 3.0
+               * (np.cos(np.radians(e * 180.0 / elevation))
+                  - np.cos(np.radians((e + 1) * 180.0 / elevation))) * (2 * np.pi / azimuth))
+        density = np.sum(np.linalg.norm(points - points[k], axis=1) <= 0.2 * radius)
+        hist[a, e, j] += 1.0 / (density * vol ** (1 / 3))
+    h = hist.reshape(-1)
+    return h / np.linalg.norm(h)
+
+
 def _bin_votes(u, n, cyclic):
     """(bin, weight) pairs of linear interpolation between bin centres at integers."""
     lo = int(np.floor(u))

@@ -11,11 +11,18 @@ neighbours), so they can be matched like the learned descriptors.
 * Spin image (Johnson & Hebert 1999), 153 values: about the keypoint normal n, each neighbour
   at offset d maps to ``(α, β) = (‖d − (d·n) n‖, d·n)``, accumulated bilinearly into a
   (W+1) × (2W+1) grid over ``α ∈ [0, R], β ∈ [−R, R]`` (W = 8, as PCL's default).
+* USC, Unique Shape Context (Tombari, Salti & Di Stefano 2010), 1960 values: Frome's 3-D shape
+  context in the SHOT LRF — 10 radial shells spaced logarithmically from R/10 to R (the
+  nearer neighbours fall in the first), 14 elevation bins of equal angle from ẑ, 14 azimuth bins
+  from x̂; each neighbour adds ``1 / (ρ · V^(1/3))``, ρ the number of points within R/5 of it
+  (itself included) and V its bin's volume, as PCL's ``UniqueShapeContext``; the frame being
+  unique, no azimuthal copies are kept.
 * FPFH (Rusu et al. 2009), 33 values: open3d's implementation.
 """
 from __future__ import annotations
 
 import numpy as np
+from sklearn.neighbors import KDTree
 
 from sphere_jax.eval.lrfs import shot_lrf
 from sphere_jax.eval.neighbourhood import Neighbourhoods
@@ -23,6 +30,23 @@ from sphere_jax.eval.neighbourhood import Neighbourhoods
 SHOT_BINS, SHOT_AZIMUTH, SHOT_ELEVATION, SHOT_RADIAL = 11, 8, 2, 2
 SHOT_DIM = SHOT_BINS * SHOT_AZIMUTH * SHOT_ELEVATION * SHOT_RADIAL
 SPIN_WIDTH = 8
+USC_RADIAL, USC_ELEVATION, USC_AZIMUTH = 10, 14, 14
+USC_DIM = USC_RADIAL * USC_ELEVATION * USC_AZIMUTH
+USC_MIN_RADIUS, USC_DENSITY_RADIUS = 0.1, 0.2       # fractions of the support radius
+
+
+def usc_shells(radius, bins=USC_RADIAL, min_fraction=USC_MIN_RADIUS):
+    """The ``bins + 1`` shell radii, logarithmically spaced from ``min_fraction · R`` to R."""
+    return radius * np.exp(np.log(min_fraction) * (1.0 - np.arange(bins + 1) / bins))
+
+
+def usc_volumes(radius):
+    """``[radial, elevation]`` volumes of USC's bins (equal for every azimuth)."""
+    r = usc_shells(radius)
+    theta = np.linspace(0.0, np.pi, USC_ELEVATION + 1)
+    dr = (r[1:] ** 3 - r[:-1] ** 3) / 3.0
+    dcos = np.cos(theta[:-1]) - np.cos(theta[1:])
+    return dr[:, None] * dcos[None, :] * (2 * np.pi / USC_AZIMUTH)
 
 
 def _normalise(desc_KxD):
@@ -91,6 +115,32 @@ def spin_image(nb: Neighbourhoods, keypoint_normals_Kx3, width=SPIN_WIDTH):
         for b, wb in ((b0, wb0), (b1, wb1)):
             hist += np.bincount(base + b * cols + a, wa * wb, minlength=len(hist))
     return _normalise(hist.reshape(nb.n_keypoints, rows * cols))
+
+
+def usc(nb: Neighbourhoods, points_Nx3, frames_Kx3x3=None, tree=None):
+    """USC descriptors ``[K, 1960]`` of the keypoints of ``nb`` (frames: SHOT LRFs by default);
+    the local densities are counted in ``points`` (``tree``: its sklearn KD-tree, if built)."""
+    frames = shot_lrf(nb) if frames_Kx3x3 is None else np.asarray(frames_Kx3x3, np.float64)
+    valid = np.all(np.isfinite(frames), axis=(1, 2))
+    frames = np.where(valid[:, None, None], frames, np.eye(3))
+    q = np.einsum("mi,mij->mj", nb.local, frames[nb.owner])   # neighbour in the LRF
+    r = nb.radius
+    shell = np.clip(np.searchsorted(usc_shells(r)[1:], nb.dist, side="left"), 0, USC_RADIAL - 1)
+    theta = np.arccos(np.clip(q[:, 2] / nb.dist, -1.0, 1.0))
+    elev = np.clip((theta / np.pi * USC_ELEVATION).astype(np.int64), 0, USC_ELEVATION - 1)
+    phi = np.mod(np.arctan2(q[:, 1], q[:, 0]), 2 * np.pi)
+    azim = np.clip((phi / (2 * np.pi) * USC_AZIMUTH).astype(np.int64), 0, USC_AZIMUTH - 1)
+    unique, inverse = np.unique(nb.index, return_inverse=True)
+    points_Nx3 = np.asarray(points_Nx3, np.float64)
+    tree = KDTree(points_Nx3) if tree is None else tree
+    density = tree.query_radius(points_Nx3[unique], USC_DENSITY_RADIUS * r,
+                                count_only=True)[inverse.reshape(-1)]
+    w = 1.0 / (np.maximum(density, 1) * np.cbrt(usc_volumes(r)[shell, elev]))
+    bins = (azim * USC_ELEVATION + elev) * USC_RADIAL + shell
+    hist = np.bincount(nb.owner * USC_DIM + bins, w, minlength=nb.n_keypoints * USC_DIM)
+    out = hist.reshape(nb.n_keypoints, USC_DIM)
+    out[~valid] = 0.0
+    return _normalise(out)
 
 
 def fpfh(points_Nx3, normals_Nx3, keypoints_K, radius, max_nn=100):

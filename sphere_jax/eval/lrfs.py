@@ -9,6 +9,10 @@ Frames are ``[K, 3, 3]`` with columns x̂, ŷ, ẑ in world coordinates (the con
 * TOLDI (Yang, Zhang, Xiao & Cao 2017): ẑ is the normal of the neighbours within R/3 (PCA about
   their centroid), turned so the neighbours lie below it (Σ dᵢ·ẑ ≤ 0); x̂ is the sum of the
   neighbours' projections on the tangent plane weighted by ``((R − dᵢ)·(dᵢ·ẑ))²``.
+* 3DSN (Gojcic, Zhou, Wegner & Wieser 2019, 3DSmoothNet's variant of TOLDI): ẑ is the
+  eigenvector of the smallest eigenvalue of the scatter of *all* neighbours about the keypoint
+  itself (TOLDI: the neighbours within R/3, about their centroid), turned the same way; x̂ as
+  TOLDI's.
 
 Keypoints with too few neighbours get NaN frames; callers count them as not repeatable.
 """
@@ -57,11 +61,22 @@ def toldi_lrf(nb: Neighbourhoods, min_neighbours=5):
     centroid = inner.sum(inner.local) / n_inner
     centred = inner.local - centroid[inner.owner]
     _, vecs = np.linalg.eigh(_outer_sum(inner, centred, np.ones(len(centred))))
-    z = vecs[:, :, 0]
-    z = np.where((np.sum(nb.sum(nb.local) * z, axis=1) > 0)[:, None], -z, z)
+    return _toldi_x(nb, vecs[:, :, 0], (nb.counts >= min_neighbours) & (inner.counts >= 3))
+
+
+def threedsn_lrf(nb: Neighbourhoods, min_neighbours=5):
+    """3DSmoothNet's LRF for every keypoint of ``nb`` -> ``[K, 3, 3]``."""
+    _, vecs = np.linalg.eigh(_outer_sum(nb, nb.local, np.ones(len(nb.local))))
+    return _toldi_x(nb, vecs[:, :, 0], nb.counts >= min_neighbours)
+
+
+def _toldi_x(nb: Neighbourhoods, z_Kx3, valid_K):
+    """ẑ turned so the neighbours lie below it, and TOLDI's x̂: the tangent projections
+    weighted by ``((R − dᵢ)·(dᵢ·ẑ))²``."""
+    z = np.where((np.sum(nb.sum(nb.local) * z_Kx3, axis=1) > 0)[:, None], -z_Kx3, z_Kx3)
     height = np.sum(nb.local * z[nb.owner], axis=1)
     tangent = nb.local - height[:, None] * z[nb.owner]
     w = ((nb.radius - nb.dist) * height) ** 2
     x = nb.sum(w[:, None] * tangent)
     x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
-    return _frames(x, z, (nb.counts >= min_neighbours) & (inner.counts >= 3))
+    return _frames(x, z, valid_K)

@@ -9,6 +9,7 @@ the resampled unit patches they were trained on.
 ``fpfh``           FPFH (open3d), 33-d
 ``shot``           SHOT, 352-d, in the SHOT LRF
 ``spin``           Spin Images, 153-d
+``usc``            Unique Shape Context, 1960-d, in the SHOT LRF
 ``lead``           LEAD's SO(3) descriptor turned to canonical pose by FLARE
 ``lead_compass``   the same, turned by the Compass LRF (needs a compass bundle)
 ``lead_pn``        LEAD-PN (PointNet on FLARE-oriented patches)
@@ -17,7 +18,8 @@ the resampled unit patches they were trained on.
 
 LRFs: ``flare`` (:func:`~sphere_jax.models.flare.flare` on the model's resampled patches, as LEAD
 uses
-it), ``shot``, ``toldi``, ``compass`` and ``sound`` (its Compass branch).
+it), ``shot``, ``toldi``, ``3dsn`` (3DSmoothNet's TOLDI variant), ``compass`` and ``sound``
+(its Compass branch).
 """
 from __future__ import annotations
 
@@ -31,8 +33,8 @@ from sphere_jax.eval import descriptors, lrfs
 from sphere_jax.eval.neighbourhood import radius_neighbourhoods
 from sphere_jax.eval.scenes import Fragment
 
-DESCRIPTORS = ("fpfh", "shot", "spin", "lead", "lead_compass", "lead_pn", "sound")
-LRFS = ("flare", "shot", "toldi", "compass", "sound")
+DESCRIPTORS = ("fpfh", "shot", "spin", "usc", "lead", "lead_compass", "lead_pn", "sound")
+LRFS = ("flare", "shot", "toldi", "3dsn", "compass", "sound")
 # Which bundle each learned method needs.
 BUNDLE_OF = {"lead": ("lead",), "lead_compass": ("lead", "compass"), "lead_pn": ("lead_pn",),
              "sound": ("sound",), "compass": ("compass",)}
@@ -83,6 +85,9 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     if name == "spin":
         return lambda f: descriptors.spin_image(_neighbourhoods(f, f.keypoints, radius),
                                                 f.normals[f.keypoints])
+    if name == "usc":
+        return lambda f: descriptors.usc(_neighbourhoods(f, f.keypoints, radius), f.points,
+                                         tree=f.tree)
     if name == "lead_compass":
         lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
 
@@ -111,6 +116,8 @@ def lrf(name, radius, bundles=None, chunk=None):
         return lambda f, idx: lrfs.shot_lrf(_neighbourhoods(f, idx, radius))
     if name == "toldi":
         return lambda f, idx: lrfs.toldi_lrf(_neighbourhoods(f, idx, radius))
+    if name == "3dsn":
+        return lambda f, idx: lrfs.threedsn_lrf(_neighbourhoods(f, idx, radius))
     if bundles_needed([name], bundles):
         raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
     model = _bundle(bundles[name])

@@ -32,6 +32,19 @@ def test_shot_and_spin_match_loop_reference(kitchen_fragment):
         np.testing.assert_allclose(spin[k], ref, atol=2e-6)
 
 
+def test_usc_matches_loop_reference(kitchen_fragment):
+    f = kitchen_fragment
+    pts = f.points.astype(np.float64)
+    kp = f.keypoints[:6]
+    nb = radius_neighbourhoods(pts, pts[kp], 0.3)
+    frames = lrfs.shot_lrf(nb)
+    usc = descriptors.usc(nb, pts, frames)
+    assert usc.shape == (6, descriptors.USC_DIM) and descriptors.USC_DIM == 1960
+    for k in range(6):
+        ref = reference.usc_loop(pts, pts[kp[k]], 0.3, frames[k])
+        np.testing.assert_allclose(usc[k], ref, atol=2e-6)
+
+
 def test_handcrafted_descriptors_are_rotation_invariant(kitchen_fragment):
     """The whole fragment turned about the sensor: FPFH, SHOT and Spin Images barely move
     (normals near grazing angles may flip when re-estimated, hence the percentile bound)."""
@@ -47,7 +60,9 @@ def test_handcrafted_descriptors_are_rotation_invariant(kitchen_fragment):
             ("shot", lambda fr, kp: descriptors.shot(
                 radius_neighbourhoods(fr.points, fr.points[kp], 0.3), fr.normals)),
             ("spin", lambda fr, kp: descriptors.spin_image(
-                radius_neighbourhoods(fr.points, fr.points[kp], 0.3), fr.normals[kp]))]:
+                radius_neighbourhoods(fr.points, fr.points[kp], 0.3), fr.normals[kp])),
+            ("usc", lambda fr, kp: descriptors.usc(
+                radius_neighbourhoods(fr.points, fr.points[kp], 0.3), fr.points))]:
         a, b, c = fn(f, f.keypoints), fn(g, g.keypoints), fn(f, other)
         same = np.linalg.norm(a - b, axis=1)
         chance = np.median(np.linalg.norm(a - c, axis=1))

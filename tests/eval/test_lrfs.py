@@ -14,7 +14,7 @@ def kitchen_points():
     return patches.voxel_downsample(_fixtures.kitchen_or_embedded().load(0), 0.02)
 
 
-@pytest.mark.parametrize("name", ["shot", "toldi"])
+@pytest.mark.parametrize("name", ["shot", "toldi", "threedsn"])
 def test_matches_loop_reference_on_scan_points(kitchen_points, name):
     pts = kitchen_points.astype(np.float64)
     kp = np.random.default_rng(0).choice(len(pts), 20, replace=False)
@@ -24,7 +24,7 @@ def test_matches_loop_reference_on_scan_points(kitchen_points, name):
     assert np.max(np.abs(fast - slow)) < 1e-9
 
 
-@pytest.mark.parametrize("name", ["shot", "toldi"])
+@pytest.mark.parametrize("name", ["shot", "toldi", "threedsn"])
 def test_frames_are_rotations_and_rotate_with_the_cloud(kitchen_points, name):
     pts = kitchen_points.astype(np.float64)
     kp = np.random.default_rng(1).choice(len(pts), 500, replace=False)
