@@ -16,6 +16,7 @@ TASKS = {
     "recognition": "sphere_jax.eval.recognition",        # seed ch. 5: Saliency Boost
     "objects": "sphere_jax.eval.objects",                # seed ch. 6: colour + shape
     "pose": "sphere_jax.eval.pose",                      # seed ch. 7: pose pipeline
+    "ablation": "sphere_jax.eval.ablation",              # seed Table 4.5: LEAD variants
 }
 
 

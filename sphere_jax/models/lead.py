@@ -44,13 +44,15 @@ class Lead(nn.Module):
     # grid function, which Wigner-D rotation then only approximates (measured: 0.29 relative
     # error with it, see tests/models/test_lead.py). Off by default.
     final_relu: bool = False
+    grid: str = "near_identity"     # kernel grids (correlation.make_grid; Table 4.5's axis)
     fused: bool = True          # spectral-domain path (sphere_jax.spherical.fused)
     axis_name: str | None = None    # data-parallel batch axis (layers.GridBatchNorm)
 
     def setup(self):
         self.signal = PatchSignal(self.bandwidths[0], self.n_shells)
         self.encoder = SphericalStack(self.features, self.bandwidths, final_relu=self.final_relu,
-                                      fused=self.fused, axis_name=self.axis_name)
+                                      grid=self.grid, fused=self.fused,
+                                      axis_name=self.axis_name)
         self.decoder = FoldingDecoder(self.decoder_side, self.decoder_hidden,
                                       axis_name=self.axis_name)
 
