@@ -16,7 +16,7 @@ best 0.929 with F at 0.64 of A's time.
 """
 import ml_collections
 
-from configs import common, eval_common, eval_registration
+from configs import eval_registration
 from sphere_jax import paths
 
 # Folders of the shipped bundles' training scans (no redkitchen fragment, no bunny).
