@@ -17,6 +17,7 @@ def base(arg) -> ml_collections.ConfigDict:
     c.seed = 0
     c.data = ml_collections.ConfigDict(dict(
         root="",              # empty: the embedded synthetic scenes; else 3DMatch/Stanford layout
+        gt="",                # ground truth elsewhere (3DLoMatch): <gt>/<scene>-evaluation/gt.log
         voxel=0.02,           # 2 cm voxel grid (seed 4.3)
         normal_k=17,          # normals from 17 neighbours
         n_keypoints=5000,     # per scan, seeded random (release keypoint files win if present)

@@ -88,24 +88,42 @@ def stanford_scans(conf_path, voxel, min_overlap=0.10) -> PairSet:
     return PairSet(name, scans.names, transforms, lambda k: scans.cloud(k).points)
 
 
-def find_pair_sets(root, voxel=0.02, min_overlap=0.10):
+def scene_gt_dir(gt_root, scene):
+    """The ground-truth folder of ``scene`` in a release of ground truth only (e.g. 3DLoMatch):
+    ``<gt_root>/<scene>-evaluation/gt.log``, ``<gt_root>/<scene>/gt.log``, or ``gt_root``
+    itself when it holds a ``gt.log``."""
+    for d in (os.path.join(gt_root, scene + "-evaluation"), os.path.join(gt_root, scene),
+              gt_root):
+        if os.path.isfile(os.path.join(d, "gt.log")):
+            return d
+    raise FileNotFoundError(f"data.gt={gt_root!r} has no gt.log for scene {scene!r} (looked "
+                            f"for {scene}-evaluation/gt.log and {scene}/gt.log)")
+
+
+def find_pair_sets(root, voxel=0.02, min_overlap=0.10, gt_root=None):
     """Every scan set under ``root``: Stanford ``.conf`` files, a 3DMatch scene folder, or a
-    folder of such scenes (ground truth in ``<scene>-evaluation/`` or beside the clouds)."""
+    folder of such scenes (ground truth in ``<scene>-evaluation/`` or beside the clouds, or,
+    with ``gt_root``, from there: :func:`scene_gt_dir`). A scene is any folder with at least one
+    ``cloud_bin_K.ply``; pairs whose clouds are absent are skipped with a warning."""
     root = os.path.normpath(str(root))
     if not os.path.isdir(root):
         raise FileNotFoundError(f"data root {root!r} is not a folder")
+    if gt_root is not None and not os.path.isdir(str(gt_root)):
+        raise FileNotFoundError(f"data.gt={gt_root!r} is not a folder")
+    gt = (lambda d: None) if gt_root is None else (
+        lambda d: scene_gt_dir(str(gt_root), os.path.basename(d)))
     confs = sorted(glob.glob(os.path.join(root, "*.conf")) +
                    glob.glob(os.path.join(root, "*", "*.conf")))
     if confs:
         return [stanford_scans(c, voxel, min_overlap) for c in confs]
     if glob.glob(os.path.join(root, "cloud_bin_*.ply")):
-        return [fragment_scene(threedmatch.load_fragment_scene(root))]
-    dirs = sorted(os.path.dirname(p) for p in glob.glob(os.path.join(root, "*",
-                                                                       "cloud_bin_0.ply")))
+        return [fragment_scene(threedmatch.load_fragment_scene(root, gt(root)))]
+    dirs = sorted({os.path.dirname(p) for p in glob.glob(os.path.join(root, "*",
+                                                                        "cloud_bin_*.ply"))})
     if not dirs:
         raise FileNotFoundError(f"{root}: no Stanford .conf, no cloud_bin_K.ply fragments and "
                                 f"no scene folders holding them")
-    return [fragment_scene(threedmatch.load_fragment_scene(d)) for d in dirs]
+    return [fragment_scene(threedmatch.load_fragment_scene(d, gt(d))) for d in dirs]
 
 
 def rotations_for(pair_set: PairSet, seed):
@@ -168,7 +186,7 @@ def data_root(config):
 def pair_sets(config):
     """The scan sets of ``config.data`` (scene filter, pair limit, rotated variant applied)."""
     sets = find_pair_sets(data_root(config), config.data.voxel,
-                                    config.data.get("min_overlap", 0.10))
+                          config.data.get("min_overlap", 0.10), config.data.get("gt") or None)
     if config.data.scenes:
         wanted = [s.strip() for s in config.data.scenes.split(",") if s.strip()]
         unknown = sorted(set(wanted) - {s.name for s in sets})

@@ -68,3 +68,29 @@ def test_registration_tiny_on_embedded_scenes_rotated(tmp_path):
     rows, md = tasks.run(c, str(tmp_path), progress=False)
     assert {r["scene"] for r in rows} == {"synth-room-0", "synth-room-1"}
     assert "(rotated)" in md
+
+
+def test_partial_scene_and_ground_truth_elsewhere(tmp_path):
+    """A scene holding only fragments 8 and 15 is found, and with ``gt_root`` (the 3DLoMatch
+    release layout: ground truth only) its pairs come from there; the pair whose cloud is
+    absent is skipped with a warning."""
+    import numpy as np
+    from sphere_jax.data.readers import io, threedmatch
+    scene = tmp_path / "scans" / "kitchen"
+    scene.mkdir(parents=True)
+    pts = np.random.default_rng(0).uniform(-1, 1, (500, 3)).astype(np.float32)
+    for k in (8, 15):
+        io.write_ply(str(scene / f"cloud_bin_{k}.ply"), pts)
+    t = np.eye(4)
+    t[:3, 3] = [0.1, 0.0, 0.0]
+    lo = tmp_path / "lomatch" / "kitchen-evaluation"
+    lo.mkdir(parents=True)
+    threedmatch.write_gt_log(str(lo / "gt.log"), {(8, 15): t, (3, 8): t}, 20)
+    with pytest.raises(ValueError, match="no gt.log"):
+        scenes.find_pair_sets(tmp_path / "scans")                  # none beside the clouds
+    with pytest.warns(UserWarning, match="1 ground-truth pair"):
+        sets = scenes.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "lomatch")
+    assert [(s.name, s.pairs) for s in sets] == [("kitchen", [(8, 15)])]
+    np.testing.assert_allclose(sets[0].transforms[(8, 15)], t)
+    with pytest.raises(FileNotFoundError, match="data.gt"):
+        scenes.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "nowhere")

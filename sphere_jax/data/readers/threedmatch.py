@@ -164,8 +164,8 @@ def load_fragment_scene(fragment_dir, gt_dir=None) -> FragmentScene:
         gt_dir = next((d for d in (fragment_dir + "-evaluation", fragment_dir)
                        if os.path.isfile(os.path.join(d, "gt.log"))), None)
         if gt_dir is None:
-            raise DataError(fragment_dir, "no gt.log here or in '<scene>-evaluation'; pass "
-                                          "gt_dir")
+            raise DataError(fragment_dir, "no gt.log here or in '<scene>-evaluation'; give "
+                                          "gt_dir (evaluations: --config.data.gt=DIR)")
     transforms, n = read_gt_log(os.path.join(gt_dir, "gt.log"))
     present = set(ks)
     skipped = tuple(sorted(p for p in transforms if p[0] not in present or p[1] not in present))
