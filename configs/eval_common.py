@@ -29,8 +29,8 @@ def base(arg) -> ml_collections.ConfigDict:
     c.methods = ""
     c.bundle = ""             # one bundle overriding the default of its kind
     c.bundles = ml_collections.ConfigDict(dict(
-        lead=shipped("lead_cpu"), compass=shipped("compass_cpu"), lead_pn=shipped("lead_pn_cpu"),
-        sound=shipped("sound_cpu")))
+        lead=shipped("lead"), compass=shipped("compass"), lead_pn=shipped("lead_pn"),
+        sound=shipped("sound")))
     c.chunk = ml_collections.config_dict.placeholder(int)    # None: each bundle's infer_chunk
     if size == "quick":
         c.data.update(n_keypoints=2500, max_pairs=8)

@@ -46,9 +46,16 @@ def checkpoints_root():
                             or os.path.join(REPO, "checkpoints"))
 
 
+# The shipped bundle of each model kind: the evaluations' defaults and the examples' bundles.
+SHIPPED = {"compass": "compass_cpu", "lead": "lead_cpu", "lead_pn": "lead_pn_cpu",
+           "sound": "sound_cpu", "compass_shapes": "compass_shapes_cpu"}
+
+
 def shipped_bundle(name, required=False):
-    """The folder of shipped bundle ``name`` (e.g. ``'sound_cpu'``); ``''`` when it is absent
+    """The folder of shipped bundle ``name`` — a folder of ``checkpoints/`` (``'sound_cpu'``)
+    or a model kind of :data:`SHIPPED` (``'sound'``); ``''`` when it is absent
     (FileNotFoundError instead with ``required``)."""
+    name = SHIPPED.get(name, name)
     path = os.path.join(checkpoints_root(), name, "bundle")
     if os.path.isfile(os.path.join(path, "config.json")):
         return path

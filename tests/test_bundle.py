@@ -27,7 +27,7 @@ def test_save_load_round_trip_and_training_data(tmp_path):
 
 
 def test_shipped_bundles_state_what_they_were_trained_on():
-    for name in ("compass_cpu", "lead_cpu", "lead_pn_cpu", "sound_cpu"):
+    for name in paths.SHIPPED:
         data = bundle.read_training_data(paths.shipped_bundle(name, required=True))
         assert data["folders"], name
 

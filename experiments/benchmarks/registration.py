@@ -26,7 +26,7 @@ def run(keypoints=5000, methods=("fpfh", "shot", "lead"), **_):
     else:
         pair_set = scenes.find_pair_sets(pipeline.default_scan_root())[0]
         pair = pair_set.pairs[0]
-    bundles = {k: paths.shipped_bundle(f"{k}_cpu") for k in ("lead", "compass", "sound")}
+    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "sound")}
     records, total = [], time.perf_counter()
 
     def stage(name, fn):

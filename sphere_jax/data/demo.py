@@ -12,7 +12,7 @@ real_data_root = paths.real_data_root
 
 
 def bundle(name):
-    """Path of a shipped bundle, e.g. ``bundle('sound_cpu')``."""
+    """Path of a shipped bundle, by model kind (``bundle('sound')``) or folder name."""
     return paths.shipped_bundle(name, required=True)
 
 

@@ -44,17 +44,17 @@ def compute():
     """Name -> array of every shipped bundle's orient/describe outputs on :func:`cloud`."""
     pts, kp, out = cloud(), KEYPOINTS, {}
     kw = dict(radius=RADIUS, workers=1)
-    compass = sphere_jax.load_bundle(bundle("compass_cpu"))
+    compass = sphere_jax.load_bundle(bundle("compass"))
     out["compass_orient"] = compass.orient(pts, kp, **kw)
-    lead = sphere_jax.load_bundle(bundle("lead_cpu"))
+    lead = sphere_jax.load_bundle(bundle("lead"))
     out["lead_describe"] = lead.describe(pts, kp, **kw)
     out["lead_compass_describe"] = lead.describe(pts, kp, frames=out["compass_orient"], **kw)
-    out["lead_pn_describe"] = sphere_jax.load_bundle(bundle("lead_pn_cpu")).describe(pts, kp,
+    out["lead_pn_describe"] = sphere_jax.load_bundle(bundle("lead_pn")).describe(pts, kp,
                                                                                      **kw)
-    sound = sphere_jax.load_bundle(bundle("sound_cpu"))
+    sound = sphere_jax.load_bundle(bundle("sound"))
     out["sound_orient"] = sound.orient(pts, kp, **kw)
     out["sound_describe"] = sound.describe(pts, kp, **kw)
-    shapes = sphere_jax.load_bundle(bundle("compass_shapes_cpu"))
+    shapes = sphere_jax.load_bundle(bundle("compass_shapes"))
     unit = pts[:shapes.config.data.n_points * 2].reshape(2, -1, 3)
     unit = (unit - unit.mean(1, keepdims=True)) / 1.5
     out["compass_shapes_orient"] = shapes.orient_patches(unit, workers=1)
