@@ -20,6 +20,7 @@ def get_config(arg=None):
     c.orient_bundle = ""              # a whole-shape Compass bundle: shapes in its frames
     c.data.n_points = {"paper": 2048, "mid": 1024, "cpu": 512, "tiny": 64}[size]
     c.data.rotate = False            # train in canonical pose
+    c.data.holdout_every = 0         # k > 0: a set without test list tests on each k-th shape
     c.train.batch_size = {"paper": 32, "mid": 32, "cpu": 16, "tiny": 4}[size]
     c.model_kwargs = {
         "paper": dict(features=(64, 64, 64, 128, 1024), head=(512, 256)),

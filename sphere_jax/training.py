@@ -57,7 +57,8 @@ def build_source(config):
     d = config.data
     if models.spec(config.model).labelled or d.get("shapes", False):
         root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
-        return pipeline.ShapeSource(root, d.n_points, config.seed)
+        return pipeline.ShapeSource(root, d.n_points, config.seed,
+                                    d.get("holdout_every", 0))
     groups = pipeline.scan_groups(d.root)
     return pipeline.PatchSource([p for g in groups for p in g], d.voxel, d.keypoint_leaf,
                                 d.radius, d.n_points, d.min_points, d.val_fraction, config.seed,

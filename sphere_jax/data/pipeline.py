@@ -175,7 +175,9 @@ class ShapeSource:
     * PointNet's HDF5: ``*train*.h5`` / ``*test*.h5`` (needs h5py) with ``shape_names.txt``.
     """
 
-    def __init__(self, root, n_points, seed=0):
+    def __init__(self, root, n_points, seed=0, holdout_every=0):
+        """``holdout_every`` = k > 0: a set without a test split (e.g. a train-only download)
+        gets one: every k-th shape of each class, in file order, moves to ``test``."""
         self.n_points, self.seed = n_points, seed
         root = str(root)
         if not os.path.isdir(root):
@@ -194,6 +196,9 @@ class ShapeSource:
                                     f".txt shapes, <class>/train/*.off meshes, or *.h5 files)")
         if not self.splits["train"][0]:
             raise ValueError(f"no training shapes found under {root!r}")
+        if holdout_every and not self.splits.get("test", ([],))[0]:
+            self.splits = holdout_split(*self.splits["train"], int(holdout_every))
+        self.holdout_every = int(holdout_every)
         self.root = os.path.abspath(root)
 
     def statement(self):
@@ -201,7 +206,9 @@ class ShapeSource:
         return {"kind": "shapes", "folders": {paths.portable(self.root):
                                               len(self.splits["train"][0])},
                 "classes": len(self.classes),
-                "shapes": {k: len(v[0]) for k, v in self.splits.items()}}
+                "shapes": {k: len(v[0]) for k, v in self.splits.items()},
+                **({"test_split": f"every {self.holdout_every}th shape of each class"}
+                   if self.holdout_every else {})}
 
     def batch(self, step, batch_size, split="train", rotate=False, copies=False,
               occlusion=True):
@@ -222,6 +229,21 @@ class ShapeSource:
         if rotate:
             pts = np.einsum("bij,bnj->bni", augment.random_rotations(rng, batch_size), pts)
         return {"points": pts.astype(np.float32), "labels": labels[pick]}
+
+
+def holdout_split(shapes, labels, every):
+    """``{'train', 'test'}`` from one labelled list: the k-th, 2k-th, ... shape of each class
+    (in list order) is a test shape, the rest train; classes with one shape keep it."""
+    if every < 2:
+        raise ValueError(f"holdout_every must be 0 (off) or ≥ 2, got {every}")
+    rank = np.zeros(len(labels), np.int64)
+    seen = {}
+    for i, c in enumerate(labels):
+        seen[c] = seen.get(c, 0) + 1
+        rank[i] = seen[c]
+    test = (rank % every == 0)
+    pick = lambda m: ([s for s, t in zip(shapes, m) if t], labels[m])
+    return {"train": pick(~test), "test": pick(test)}
 
 
 def _load_resampled(root, names_file):

@@ -29,3 +29,16 @@ def test_shape_source_reads_pointnet_h5(tmp_path):
         f["label"] = np.array([[0], [2], [1]])
     h5 = pipeline.ShapeSource(tmp_path, 32)
     assert h5.classes == ["0", "1", "2"] and h5.batch(0, 2)["points"].shape == (2, 32, 3)
+
+
+def test_train_only_shape_set_gets_a_held_out_split(shared):
+    root = os.path.join(shared, "modelnet40", "modelnet40_normal_resampled")
+    res = pipeline.ShapeSource(root, 256, holdout_every=3)
+    train, test = res.splits["train"], res.splits["test"]
+    assert len(train[0]) + len(test[0]) == 127 and 20 <= len(test[0]) <= 45
+    assert set(test[1]) <= set(train[1])           # every test class is also trained on
+    ids = lambda split: {tuple(s[0]) for s in split[0]}
+    assert not ids(train) & ids(test)
+    assert res.statement()["shapes"]["test"] == len(test[0])
+    with pytest.raises(ValueError, match="holdout_every"):
+        pipeline.holdout_split(train[0], train[1], 1)
