@@ -7,9 +7,9 @@ evaluations of the thesis they come from.
 The three calls most people need::
 
     import sphere_jax
-    frames = sphere_jax.orient("checkpoints/compass_cpu/bundle", points, keypoints)   # [K, 3, 3]
-    desc = sphere_jax.describe("checkpoints/sound_cpu/bundle", points, keypoints)     # [K, 512]
-    bundle = sphere_jax.load_bundle(path)        # reuse one bundle across calls
+    frames = sphere_jax.orient("compass", points, keypoints)        # [K, 3, 3], shipped Compass
+    desc = sphere_jax.describe("lead", points, keypoints, frames=frames)    # [K, 512]
+    bundle = sphere_jax.load_bundle(path)    # a bundle folder (or kind), reused across calls
 
 Conventions (``sphere_jax/spherical/CONVENTIONS.md``): points are ``[N, 3]`` float arrays in metres,
 rotations act actively (``p' = R p``), an LRF is a 3×3 matrix whose **columns** are x̂, ŷ, ẑ in
@@ -41,7 +41,8 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
     """Local reference frames from a Compass or SOUND bundle.
 
     Args:
-      bundle: a :class:`sphere_jax.api.Bundle` or the path of one (loaded once, then cached).
+      bundle: a :class:`sphere_jax.api.Bundle`, the path of one (loaded once, then cached) or
+        a shipped model kind (``"compass"``, ``"sound"``).
       points: ``[N, 3]`` float cloud, metres (e.g. voxelised at 2 cm for 3DMatch).
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's training radius, 0.3 m).
@@ -67,7 +68,8 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
     FLARE-oriented patch; SOUND orients itself.
 
     Args:
-      bundle: a :class:`sphere_jax.api.Bundle` or the path of one.
+      bundle: a :class:`sphere_jax.api.Bundle`, the path of one, or a shipped model kind
+        (``"lead"``, ``"lead_pn"``, ``"sound"``).
       points: ``[N, 3]`` float cloud, metres.
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's).

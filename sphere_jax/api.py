@@ -1,9 +1,9 @@
 """Inference from Python: load a trained bundle, then orient or describe keypoints of a cloud.
 
     from sphere_jax import api
-    compass = api.load_bundle("checkpoints/compass_cpu/bundle")
+    compass = api.load_bundle("compass")          # the shipped one; or a bundle folder
     frames = compass.orient(points, keypoints, radius=0.3)        # [K, 3, 3], columns x̂ ŷ ẑ
-    sound = api.load_bundle("checkpoints/sound_cpu/bundle")
+    sound = api.load_bundle("runs/sound_mid/bundle")
     desc = sound.describe(points, keypoints, radius=0.3)          # [K, 512]
 
 Patches are drawn with a fixed seed, jitted and vmapped over chunks of keypoints, so memory
@@ -23,6 +23,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import bundle as bundle_files
+from sphere_jax import paths
 from sphere_jax import models
 from sphere_jax.data import patches as patch_lib
 from sphere_jax.models import flare
@@ -180,8 +181,19 @@ def extract_unit_patches(points, keypoints, radius, n_points, seed=0):
     return got.points / radius
 
 
+def bundle_path(name_or_path) -> str:
+    """A bundle folder, or the shipped bundle of a model kind (``'lead'``, ``'compass'``,
+    ``'lead_pn'``, ``'sound'``, ``'compass_shapes'``; :data:`sphere_jax.paths.SHIPPED`)."""
+    name = str(name_or_path)
+    if name in paths.SHIPPED and not os.path.isdir(name):
+        return paths.shipped_bundle(name, required=True)
+    return name
+
+
 def load_bundle(path) -> Bundle:
-    """Load a bundle folder written at the end of training (:mod:`sphere_jax.bundle`)."""
+    """Load a bundle folder written at the end of training (:mod:`sphere_jax.bundle`), or a
+    shipped one by model kind (:func:`bundle_path`)."""
+    path = bundle_path(path)
     config = bundle_files.read_config(path)
     return Bundle(models.build(config), bundle_files.read_variables(path), config)
 
@@ -189,7 +201,7 @@ def load_bundle(path) -> Bundle:
 def cached_bundle(path) -> Bundle:
     """:func:`load_bundle`, once per bundle folder and process (the models compile once);
     a folder rewritten since (a new ``config.json``) is loaded again."""
-    path = os.path.abspath(str(path))
+    path = os.path.abspath(bundle_path(path))
     return _cached_bundle(path, bundle_files.stamp(path))
 
 

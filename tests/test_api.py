@@ -28,6 +28,10 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
         bundle.orient(np.concatenate([cloud, [[9.0, 9.0, 9.0]]]), [3000], radius=0.5)
     with pytest.raises(FileNotFoundError, match="not a bundle"):
         api.load_bundle(tmp_path)
+    from sphere_jax import paths
+    for kind in paths.SHIPPED:                  # shipped bundles by kind: the same folder
+        assert api.bundle_path(kind) == paths.shipped_bundle(kind, required=True)
+        assert api.load_bundle(kind).kind == kind.replace("_shapes", "")
     lead_config = lead.get_config("tiny")
     with pytest.raises(ValueError, match="orient needs a bundle of kind compass, sound"):
         api.Bundle(models.build(lead_config), {}, lead_config).orient(cloud, kp)
