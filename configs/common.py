@@ -44,6 +44,7 @@ def base(size: str) -> ml_collections.ConfigDict:
         steps=50_000, batch_size=8, learning_rate=1e-3, log_every=50, eval_every=1000,
         eval_batches=4, checkpoint_every=1000, keep_checkpoints=3,
         fused=True,               # spectral-domain training; False: layer-by-layer reference
+        init_bundle="",           # continue a run from its committed bundle (another machine)
         devices=0))               # data-parallel devices per host; 0: all local devices
     if size == "mid":
         c.data.n_points = 1024

@@ -205,6 +205,11 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     main_host = jax.process_index() == 0          # the one that logs
     metrics_path = os.path.join(workdir, "metrics.jsonl")
     start = 0
+    if mngr.latest_step() is None and config.train.get("init_bundle"):
+        start, variables = continued_bundle(config)
+        state.update(params=variables["params"], batch_stats=variables.get("batch_stats", {}),
+                     opt_state=tx.init(variables["params"]))
+        state = parallel.replicate(state, mesh)
     if mngr.latest_step() is not None:
         start = mngr.latest_step()
         sharding = parallel.replicated(mesh)
@@ -244,6 +249,27 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     mngr.wait_until_finished()
     save_bundle(workdir, config, state, source.statement())
     return state, last
+
+
+def continued_bundle(config):
+    """``(steps done, variables)`` of ``config.train.init_bundle``: a run continued on another
+    machine, from the bundle the last one committed. The model and data must be the bundle's;
+    the loop goes on at the bundle's step with the batches it would have drawn (they are a
+    function of the step), but Adam's moments start afresh — they are not in bundles."""
+    path = config.train.init_bundle
+    trained = bundle.read_config(path)
+    for key in ("model", "model_kwargs", "data", "seed"):
+        mine = config.get(key)
+        theirs = trained.get(key)
+        as_dict = lambda c: json.loads(json.dumps(c.to_dict() if hasattr(c, "to_dict") else c))
+        if as_dict(mine) != as_dict(theirs):
+            raise ValueError(f"train.init_bundle={path!r} was trained with another {key} "
+                             f"({as_dict(theirs)!r}) than this config's ({as_dict(mine)!r})")
+    done = int(trained.train.steps)
+    if done >= config.train.steps:
+        raise ValueError(f"train.init_bundle={path!r} has {done} steps done; train.steps="
+                         f"{config.train.steps} must be more")
+    return done, bundle.read_variables(path)
 
 
 def evaluate(config, source, state, eval_step, mesh):

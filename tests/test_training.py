@@ -68,6 +68,29 @@ def test_resumed_training_equals_uninterrupted(small_root, tmp_path):
     assert steps == [1, 2, 3, 4]
 
 
+def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
+    """A fresh machine continues a run from its bundle: it starts at the bundle's step, from
+    its parameters (moved by Adam steps only), and refuses a bundle of another model."""
+    from sphere_jax import api
+    first = tiny("lead", small_root, steps=2, log_every=1, eval_every=4, checkpoint_every=2)
+    training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
+    more = tiny("lead", small_root, steps=4, log_every=1, eval_every=4, checkpoint_every=2,
+                init_bundle=str(tmp_path / "a" / "bundle"))
+    training.train_and_evaluate(more, str(tmp_path / "b"), progress=False)
+    steps = [json.loads(ln)["step"] for ln in
+             (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    assert steps == [3, 4]
+    before = api.load_bundle(tmp_path / "a" / "bundle").variables["params"]
+    after = api.load_bundle(tmp_path / "b" / "bundle").variables["params"]
+    moved = max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in
+                zip(jax.tree_util.tree_leaves(before), jax.tree_util.tree_leaves(after)))
+    assert 0 < moved < 5e-3                       # two Adam steps of lr 1e-3 at most
+    other = tiny("lead", small_root, steps=4, init_bundle=str(tmp_path / "a" / "bundle"))
+    other.model_kwargs.features = (4, 4, 4, 2, 1)
+    with pytest.raises(ValueError, match="another model_kwargs"):
+        training.train_and_evaluate(other, str(tmp_path / "c"), progress=False)
+
+
 def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     from experiments import adapt
     from sphere_jax import api
