@@ -86,7 +86,7 @@ def pareto_front(times, recalls):
 
 
 def plot_pareto(rows, path, title):
-    plt = report._pyplot()
+    plt = report.pyplot()
     t = np.array([r["relative_time"] for r in rows])
     f = np.array([r["fmr"] for r in rows])
     fig, ax = plt.subplots(figsize=(5, 3.6), dpi=120)

@@ -110,7 +110,8 @@ def write_tables(workdir, rows, columns, tables, stem, title):
     return write(workdir, stem, rows, columns, markdown_report(rows, tables, title))
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the headless Agg backend (imported on first use)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -118,7 +119,7 @@ def _pyplot():
 
 
 def plot_fmr_curve(curve: dict, tau2_values, path, title="Feature-match recall vs τ2"):
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5, 3.6), dpi=120)
     for method, fmr in curve.items():
         ax.plot(tau2_values, fmr, marker=".", label=method)
@@ -135,7 +136,7 @@ def plot_repeatability(points_Nx3, keypoints_Kx3, repeatable_K, path, title, max
                        seed=0):
     """Scan i in grey, its overlap keypoints green (repeatable LRF) or red (not), seen from
     the sensor side (the seed's Fig. 3.4)."""
-    plt = _pyplot()
+    plt = pyplot()
     rng = np.random.default_rng(seed)
     if len(points_Nx3) > max_points:
         points_Nx3 = points_Nx3[rng.choice(len(points_Nx3), max_points, replace=False)]
@@ -158,7 +159,7 @@ def plot_repeatability(points_Nx3, keypoints_Kx3, repeatable_K, path, title, max
 def plot_recognition(rows, curves, workdir):
     """``pr_curves.png`` (precision vs recall per method, plain and boosted) and
     ``time_vs_auc.png`` (time per frame against AUC, the seed's trade-off plot)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5, 3.8), dpi=120)
     for (method, boost), (p, r) in curves.items():
         ax.plot(r, p, ls="-" if boost else "--",
