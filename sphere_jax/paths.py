@@ -47,8 +47,8 @@ def checkpoints_root():
 
 
 # The shipped bundle of each model kind: the evaluations' defaults and the examples' bundles.
-SHIPPED = {"compass": "compass_cpu", "lead": "lead_cpu", "lead_pn": "lead_pn_cpu",
-           "sound": "sound_cpu", "compass_shapes": "compass_shapes_cpu"}
+SHIPPED = {"compass": "compass_mid", "lead": "lead_mid", "lead_pn": "lead_pn_mid",
+           "sound": "sound_mid", "compass_shapes": "compass_shapes_cpu"}
 
 
 def shipped_bundle(name, required=False):
