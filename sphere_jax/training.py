@@ -289,6 +289,8 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True)
         raise ValueError(f"steps must be >= 1, got {steps}")
     config = ml_collections.ConfigDict(trained.config.to_dict())
     config.data.root = str(data_root)
+    config.data.root_weights = ""          # the training roots' shares mean nothing here
+    config.train.init_bundle = ""
     config.train.steps = int(steps)
     for key in ("checkpoint_every", "eval_every", "log_every"):
         config.train[key] = max(1, min(config.train[key], steps))

@@ -95,8 +95,11 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     from experiments import adapt
     from sphere_jax import api
     config = tiny("compass", small_root, steps=1)
+    scans = config.data.root
+    # Trained on weighted roots; adapted on one folder (the weights must not follow it).
+    config.data.update(root=f"{scans},{scans}", root_weights="1,1")
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
-    adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={config.data.root}",
+    adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={scans}",
                 "--steps=2", f"--workdir={tmp_path / 'adapted'}"])
     before = api.load_bundle(tmp_path / "src" / "bundle").variables["params"]
     after = api.load_bundle(tmp_path / "adapted" / "bundle").variables["params"]
