@@ -1,6 +1,7 @@
 """Compass: a self-supervised learned local reference frame (thesis 3.1).
 
     python -m experiments.train --config=compass:cpu --workdir=runs/compass_cpu
+    python -m experiments.train --config=compass:mid --workdir=runs/compass_mid   # shipped
 
 Expected: the geodesic loss between the LRF of the rotated, occluded copy and the rotated
 LRF of the original falls from ~2 rad (random) to well under 1 rad within the 'cpu' budget on

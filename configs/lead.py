@@ -1,6 +1,7 @@
 """LEAD: an unsupervised rotation-equivariant descriptor (thesis 4.1).
 
     python -m experiments.train --config=lead:cpu --workdir=runs/lead_cpu
+    python -m experiments.train --config=lead:mid --workdir=runs/lead_mid   # shipped size
 
 Expected: the Chamfer loss (unit-ball patches) falls steadily; the 512-value descriptor is an
 SO(3) map that rotates with the patch (tests check it).

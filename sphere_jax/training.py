@@ -277,10 +277,12 @@ def evaluate(config, source, state, eval_step, mesh):
         get_batch(config, source, 10_000_000 + k, "val"), mesh))
         for k in range(config.train.eval_batches)]
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}
-def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True):
+def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True, data=None):
     """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND bundle ``trained``
     with its own self-supervised loss on the scans under ``data_root``; the adapted bundle is
-    written to ``workdir/bundle`` (re-running resumes). Returns ``(path, last metrics)``."""
+    written to ``workdir/bundle`` (re-running resumes). ``data`` overrides ``config.data``
+    fields for scans of another scale (voxel, radius, keypoint_leaf). Returns
+    ``(path, last metrics)``."""
     if models.spec(trained.kind).orient is None:
         able = [k for k, s in models.SPECS.items() if s.orient is not None]
         raise ValueError(f"test-time adaptation is for {' and '.join(able)} bundles, not "
@@ -290,6 +292,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True)
     config = ml_collections.ConfigDict(trained.config.to_dict())
     config.data.root = str(data_root)
     config.data.root_weights = ""          # the training roots' shares mean nothing here
+    config.data.update(dict(data or {}))
     config.train.init_bundle = ""
     config.train.steps = int(steps)
     for key in ("checkpoint_every", "eval_every", "log_every"):

@@ -106,15 +106,22 @@ def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
 # ---- the task ------------------------------------------------------------------------------------
 
 def adapted_bundles(config, bundles, names, workdir, progress):
-    """Test-time adaptation of the learned LRF bundles on the evaluation scans."""
+    """Test-time adaptation of the learned LRF bundles on the evaluation scans, at the
+    evaluation's voxel and support radius (keypoints as dense relative to the support as in
+    training: the bunny's 1.5 cm supports get keypoints every 5 mm)."""
     out = dict(bundles)
     for kind, spec in models.SPECS.items():
         if spec.orient is not None and kind in names:
-            out[kind], _ = training.adapt(api.load_bundle(bundles[kind]),
-                                          scene_lib.data_root(config),
+            trained = api.load_bundle(bundles[kind])
+            d = trained.config.data
+            scale = config.data.radius / d.radius
+            out[kind], _ = training.adapt(trained, scene_lib.data_root(config),
                                           config.adapt_steps,
                                           os.path.join(workdir, f"adapted_{kind}"),
-                                          progress=progress)
+                                          progress=progress,
+                                          data=dict(voxel=config.data.voxel,
+                                                    radius=config.data.radius,
+                                                    keypoint_leaf=d.keypoint_leaf * scale))
     return out
 
 
