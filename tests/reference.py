@@ -204,12 +204,9 @@ def shot_lrf_loop(points, centre, radius):
     return np.stack([x, np.cross(z, x), z], 1)
 
 
-def toldi_lrf_loop(points, centre, radius):
-    d, r, _ = _neighbours(points, centre, radius)
-    inner = d[r <= radius / 3]
-    c = inner - inner.mean(0)
-    _, vecs = np.linalg.eigh(c.T @ c)
-    z = vecs[:, 0]
+def _toldi_frame(d, r, z, radius):
+    """ẑ turned so the neighbours lie below it; x̂ the tangent offsets weighted by
+    ((R − r)·h)², as TOLDI (and 3DSmoothNet) define it."""
     if np.sum(d @ z) > 0:
         z = -z
     x = np.zeros(3)
@@ -218,21 +215,21 @@ def toldi_lrf_loop(points, centre, radius):
         x += ((radius - ri) * h) ** 2 * (di - h * z)
     x /= np.linalg.norm(x)
     return np.stack([x, np.cross(z, x), z], 1)
+
+
+def toldi_lrf_loop(points, centre, radius):
+    d, r, _ = _neighbours(points, centre, radius)
+    inner = d[r <= radius / 3]
+    c = inner - inner.mean(0)
+    _, vecs = np.linalg.eigh(c.T @ c)
+    return _toldi_frame(d, r, vecs[:, 0], radius)
 
 
 def threedsn_lrf_loop(points, centre, radius):
     """3DSmoothNet's frame: ẑ from the scatter of the whole support about the keypoint."""
     d, r, _ = _neighbours(points, centre, radius)
     _, vecs = np.linalg.eigh(d.T @ d)
-    z = vecs[:, 0]
-    if np.sum(d @ z) > 0:
-        z = -z
-    x = np.zeros(3)
-    for di, ri in zip(d, r):
-        h = di @ z
-        x += ((radius - ri) * h) ** 2 * (di - h * z)
-    x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(z, x), z], 1)
+    return _toldi_frame(d, r, vecs[:, 0], radius)
 
 
 def usc_loop(points, centre, radius, frame, radial=10, elevation=14, azimuth=14):
