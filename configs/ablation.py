@@ -16,7 +16,7 @@ best 0.929 with F at 0.64 of A's time.
 """
 import ml_collections
 
-from configs import eval_registration
+from configs import eval_registration, lead
 from sphere_jax import paths
 
 # Folders of the shipped bundles' training scans (no redkitchen fragment, no bunny).
@@ -44,7 +44,7 @@ def get_config(arg=None):
         raise ValueError(f"config argument must be '', 'quick' or 'tiny', got {arg!r}")
     c = ml_collections.ConfigDict()
     c.task, c.size, c.seed = "ablation", size or "full", 0
-    c.train_size = "mid"                # the decoder, points and data settings of LEAD 'mid'
+    train_size = "tiny" if size == "tiny" else "mid"  # LEAD 'mid': decoder, points, data
     c.budget_steps = {"": 600, "quick": 150, "tiny": 2}[size]
     c.batch_size = {"": 16, "quick": 16, "tiny": 4}[size]
     root, weights = training_root()
@@ -56,8 +56,8 @@ def get_config(arg=None):
                              root=real if real and size != "tiny" else "")
     c.evaluation.ransac_iterations = 5000     # the table is about matching, not RANSAC
     v = ml_collections.ConfigDict()
+    c.base = lead.get_config(train_size)   # the training config each variant modifies
     if size == "tiny":
-        c.train_size = "tiny"
         v.A = _variant("tiny, 4 SO(3) layers", bandwidths=(4, 4, 4, 4, 4, 4),
                        features=(4, 4, 4, 4, 1))
         v.B = _variant("tiny, 2 SO(3) layers", bandwidths=(4, 4, 4, 4), features=(4, 4, 1))

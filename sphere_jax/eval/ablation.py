@@ -3,20 +3,20 @@ number of SO(3) layers, their input bandwidths, channels — each trained for th
 the same data, then feature-match recall at a few hundred keypoints on the evaluation pairs and
 the forward time of a batch of patches relative to the first variant.
 
-For each variant in ``config.variants`` (name -> model overrides of the LEAD config of size
-``config.train_size``) the task trains a LEAD in ``workdir/variants/<name>`` (rerunning resumes
+For each variant in ``config.variants`` (name -> model overrides of the LEAD training config
+``config.base``) the task trains a LEAD in ``workdir/variants/<name>`` (rerunning resumes
 and reuses finished variants), times its encoder, runs the registration benchmark with it
 (LEAD oriented by FLARE, as the seed's table), and writes ``ablation.{csv,md}`` and
 ``ablation_pareto.png`` — recall against relative time, the Pareto front joined.
 """
 from __future__ import annotations
 
-import importlib
 import json
 import os
 import time
 
 import jax
+import ml_collections
 import numpy as np
 
 from sphere_jax import api, training
@@ -28,10 +28,10 @@ COLUMNS = ("variant", "description", "params", "train_s", "forward_ms", "relativ
 
 
 def variant_config(config, name):
-    """The training config of variant ``name``: LEAD at ``config.train_size`` with the
-    variant's model overrides, the ablation's data, steps and batch."""
+    """The training config of variant ``name``: ``config.base`` with the variant's model
+    overrides, the ablation's data, steps and batch."""
     v = config.variants[name]
-    c = importlib.import_module("configs.lead").get_config(config.train_size)
+    c = ml_collections.ConfigDict(config.base.to_dict())
     c.model_kwargs.update({k: (tuple(x) if isinstance(x, list) else x)
                            for k, x in v.model.items()})
     c.data.update(config.train_data.to_dict())
@@ -114,7 +114,7 @@ def run(config, workdir, progress=True):
     for name in names:
         path, record = train_variant(config, name, workdir, progress)
         ms, n_params = forward_ms(path, config.forward_batch)
-        ev = config.evaluation
+        ev = ml_collections.ConfigDict(config.evaluation.to_dict())
         ev.methods, ev.bundles.lead = "lead", path
         reg_rows, _ = registration.run(ev, os.path.join(workdir, "variants", name, "eval"),
                                        progress)
