@@ -9,13 +9,30 @@ import re
 CONFIG_DIR = os.path.dirname(os.path.abspath(__file__))
 
 
+def config_names():
+    """The experiment names ``--config`` takes (one file each in this folder)."""
+    return sorted(f[:-3] for f in os.listdir(CONFIG_DIR) if f.endswith(".py")
+                  and not f.startswith("_") and f not in ("common.py", "eval_common.py"))
+
+
 def resolve_config_arg(argv):
     """Rewrite ``--config=NAME[:ARG]`` to ``--config=<repo>/configs/NAME.py[:ARG]`` so the
-    mains accept experiment names as well as paths."""
+    mains accept experiment names as well as paths; an unknown name is a ConfigError listing
+    the known ones."""
+    from sphere_jax.checks import ConfigError
     out = []
     for a in argv:
         m = re.fullmatch(r"--config=([A-Za-z_][A-Za-z0-9_]*)(:[A-Za-z0-9_]+)?", a)
         if m:
-            a = f"--config={os.path.join(CONFIG_DIR, m.group(1) + '.py')}{m.group(2) or ''}"
+            path = os.path.join(CONFIG_DIR, m.group(1) + ".py")
+            if not os.path.isfile(path):
+                raise ConfigError("--config", "one of " + ", ".join(config_names())
+                                  + " (optionally NAME:SIZE) or a config file", m.group(1))
+            a = f"--config={path}{m.group(2) or ''}"
+        elif a.startswith("--config="):
+            file = a.split("=", 1)[1].partition(":")[0]
+            if not os.path.isfile(file):
+                raise ConfigError("--config", "one of " + ", ".join(config_names())
+                                  + " (optionally NAME:SIZE) or a config file", file)
         out.append(a)
     return out

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import ml_collections
 
+from sphere_jax import checks
+
 # 'mid' sits between: the seed's ablation (Table 4.5) kept 0.922 of the best LEAD recall with
 # three SO(3) layers at input bandwidths 12, 8, 6 (its configuration F) at 0.64 of the time, and
 # a repeatable frame needs finer cells than B = 8's 22.5° (both axes within 14° at rho = 0.97),
@@ -18,7 +20,8 @@ B24_INFER_CHUNK = 64
 def check_size(arg):
     size = arg or "paper"
     if size not in SIZES:
-        raise ValueError(f"config argument must be one of {SIZES}, got {arg!r}")
+        raise checks.ConfigError("the config argument (after the colon)", f"one of {SIZES}",
+                                 arg)
     return size
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import ml_collections
 
+from sphere_jax import checks
 from sphere_jax.paths import shipped_bundle as shipped
 
 SIZES = ("", "quick", "tiny")
@@ -11,7 +12,8 @@ SIZES = ("", "quick", "tiny")
 def base(arg) -> ml_collections.ConfigDict:
     size = arg or ""
     if size not in SIZES:
-        raise ValueError(f"config argument must be one of {SIZES}, got {arg!r}")
+        raise checks.ConfigError("the config argument (after the colon)", f"one of {SIZES}",
+                                 arg)
     c = ml_collections.ConfigDict()
     c.size = size or "full"
     c.seed = 0

@@ -15,6 +15,7 @@ import json
 
 from absl import app, flags
 
+from experiments import cli
 from experiments.benchmarks import SUITES, common
 
 flags.DEFINE_enum("suite", "layers", SUITES, "which benchmark suite to run")
@@ -43,4 +44,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    cli.run(main)

@@ -12,13 +12,12 @@ CSV and plots to the workdir (default ``runs/<config name>``).
 from __future__ import annotations
 
 import os
-import sys
 import time
 
 from absl import app, flags, logging
 from ml_collections import config_flags
 
-from configs import resolve_config_arg
+from experiments import cli
 from sphere_jax.eval import tasks
 
 config_flags.DEFINE_config_file("config", None, "evaluation config (name[:arg] or path)")
@@ -40,5 +39,4 @@ def main(_):
 
 
 if __name__ == "__main__":
-    sys.argv = resolve_config_arg(sys.argv)
-    app.run(main)
+    cli.run(main)

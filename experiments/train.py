@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import os
 import re
-import sys
 
 from absl import app, flags, logging
 from ml_collections import config_flags
 
-from configs import resolve_config_arg
+from experiments import cli
 
 config_flags.DEFINE_config_file("config", None, "experiment config (name, name:size or path)")
 flags.DEFINE_string("workdir", None, "where checkpoints, metrics and the bundle go "
@@ -61,5 +60,4 @@ def main(_):
 
 
 if __name__ == "__main__":
-    sys.argv = resolve_config_arg(sys.argv)
-    app.run(main)
+    cli.run(main)

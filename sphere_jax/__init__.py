@@ -20,7 +20,9 @@ synthetic data) and ``eval`` (benchmarks).
 """
 from __future__ import annotations
 
-__all__ = ["load_bundle", "orient", "describe"]
+__all__ = ["load_bundle", "orient", "describe", "SphereJaxError"]
+
+from sphere_jax.checks import SphereJaxError
 
 
 def load_bundle(path):
@@ -37,7 +39,8 @@ def _bundle(bundle_or_path):
     return bundle_or_path
 
 
-def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=None):
+def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=None,
+           on_invalid="raise"):
     """Local reference frames from a Compass or SOUND bundle.
 
     Args:
@@ -51,16 +54,22 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
       workers: chunks run at a time (default: one per core, at most 4; see
         :func:`sphere_jax.api.run_chunked`); memory grows with it.
       seed: seed of the patch resampling (N points drawn with replacement per support).
+      on_invalid: a keypoint whose support holds fewer than the bundle's ``min_support``
+        points (16) cannot be oriented: ``"raise"`` (default) raises an error saying which;
+        ``"mask"`` returns ``(frames, valid)``, their frames NaN and ``valid [K]`` False.
 
     Returns:
       ``[K, 3, 3]`` float32 rotation matrices, columns x̂, ŷ, ẑ in world coordinates.
+
+    Raises:
+      sphere_jax.SphereJaxError: a ``ValueError`` naming the argument that was wrong.
     """
     return _bundle(bundle).orient(points, keypoints, radius=radius, chunk=chunk, seed=seed,
-                                  workers=workers)
+                                  workers=workers, on_invalid=on_invalid)
 
 
 def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
-             workers=None):
+             workers=None, on_invalid="raise"):
     """Rotation-invariant local descriptors from a LEAD, LEAD-PN or SOUND bundle.
 
     LEAD's SO(3) descriptor is turned to canonical pose by ``frames`` (``[K, 3, 3]``, e.g.
@@ -73,8 +82,8 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
       points: ``[N, 3]`` float cloud, metres.
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's).
-      chunk, seed, workers: as in :func:`orient`.
-      frames: optional LRFs for LEAD.
+      chunk, seed, workers, on_invalid: as in :func:`orient`.
+      frames: optional LRFs for LEAD (rotations: orthonormal, det +1, within 1e-3).
 
     Returns:
       ``[K, D]`` float32 descriptors (D = 512 for the shipped bundles); compare them with the
@@ -82,4 +91,4 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
       :func:`sphere_jax.eval.registration.mutual_matches`).
     """
     return _bundle(bundle).describe(points, keypoints, radius=radius, chunk=chunk, seed=seed,
-                                    frames=frames, workers=workers)
+                                    frames=frames, workers=workers, on_invalid=on_invalid)

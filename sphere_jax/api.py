@@ -11,6 +11,7 @@ stays bounded for any number of keypoints.
 """
 from __future__ import annotations
 
+import collections
 import concurrent.futures
 import dataclasses
 import functools
@@ -23,6 +24,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import bundle as bundle_files
+from sphere_jax import checks
 from sphere_jax import paths
 from sphere_jax import models
 from sphere_jax.data import patches as patch_lib
@@ -30,6 +32,9 @@ from sphere_jax.models import flare
 
 FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
 DEFAULT_CHUNK = 256         # patches per call when neither the caller nor the bundle says
+# Fewest support points a keypoint needs: below it the N points of a patch are drawn from a
+# handful (one neighbour gave N copies of one point) and no frame or descriptor means anything.
+MIN_SUPPORT = 16
 
 
 @dataclasses.dataclass
@@ -54,104 +59,212 @@ class Bundle:
         it existed: :data:`DEFAULT_CHUNK`)."""
         return int(self.config.get("infer_chunk", DEFAULT_CHUNK))
 
+    @property
+    def min_support(self) -> int:
+        """The fewest support points a keypoint needs to be oriented or described
+        (``config.data.min_support``; default :data:`MIN_SUPPORT`)."""
+        return int(self.config.data.get("min_support", MIN_SUPPORT))
+
     # ---- patches ----------------------------------------------------------------------------
 
+    def supports(self, points, keypoints, radius=None, seed=0) -> "SupportStream":
+        """The unit-ball patches around ``keypoints`` (indices ``[K]`` or coordinates
+        ``[K, 3]``), drawn chunk by chunk (:class:`SupportStream`)."""
+        radius = checks.positive(radius, "radius", default=float(self.config.data.radius))
+        return SupportStream(points, keypoints, radius, self.config.data.n_points, seed,
+                             self.min_support)
+
     def patches(self, points, keypoints, radius=None, seed=0):
-        """Unit-ball patches ``[K, N, 3]`` around ``keypoints`` (indices ``[K]`` or coordinates
-        ``[K, 3]``)."""
-        return extract_unit_patches(points, keypoints, float(radius or self.config.data.radius),
-                                    self.config.data.n_points, seed)
+        """All unit-ball patches ``[K, N, 3]`` at once (every keypoint must have
+        :attr:`min_support` support points); :meth:`orient` and :meth:`describe` stream them."""
+        stream = self.supports(points, keypoints, radius, seed)
+        stream.check("raise")
+        return stream.make(0, stream.n)[0]
 
     def _run(self, fn, x, chunk, workers):
         """:func:`run_chunked` with the bundle's chunk when the caller gives none."""
-        return run_chunked(fn, x, self.chunk if chunk is None else chunk, workers)
+        return run_chunked(fn, x, self._chunk(chunk), workers)
+
+    def _chunk(self, chunk):
+        return checks.positive(chunk, "chunk", integer=True, default=self.chunk)
 
     # ---- LRFs and descriptors ---------------------------------------------------------------
 
     def _can(self, what):
         if getattr(self.spec, what) is None:
             able = [k for k, s in models.SPECS.items() if getattr(s, what) is not None]
-            raise ValueError(f"{what} needs a bundle of kind {', '.join(able)}; this one is "
-                             f"{self.kind!r}")
+            raise checks.InputError("bundle", f"of kind {', '.join(able)} to {what}",
+                                    f"one of kind {self.kind!r}")
 
-    def orient(self, points, keypoints, radius=None, chunk=None, seed=0, workers=None):
-        """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles)."""
+    def orient(self, points, keypoints, radius=None, chunk=None, seed=0, workers=None,
+               on_invalid="raise"):
+        """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles). ``on_invalid``: what a keypoint with
+        fewer than :attr:`min_support` support points gets — ``"raise"`` an error,
+        ``"mask"`` NaN rows, the result then being ``(frames, valid [K] bool)``."""
         self._can("orient")
-        return self._run(self._orient_fn, self.patches(points, keypoints, radius, seed), chunk,
-                         workers)
+        checks.choice(on_invalid, "on_invalid", ON_INVALID)
+        stream = self.supports(points, keypoints, radius, seed)
+        stream.check(on_invalid)
+        out = stream_chunked(self._orient_fn, stream.make, stream.n, self._chunk(chunk),
+                             workers)
+        return stream.scatter(out, (3, 3), on_invalid)
 
     def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
         :func:`sphere_jax.data.patches.unit_shapes`)."""
         self._can("orient")
-        return self._run(self._orient_fn, np.asarray(patches_KxNx3, np.float32), chunk, workers)
+        p = np.asarray(patches_KxNx3)
+        if p.ndim != 3 or p.shape[2] != 3 or p.dtype.kind not in "iuf" \
+                or not np.isfinite(p).all():
+            raise checks.InputError("patches_KxNx3", "finite float patches [K, N, 3]",
+                                    checks.shown(p) + ("" if p.dtype.kind not in "iuf" or
+                                                       np.isfinite(p).all() else
+                                                       " with non-finite values"))
+        return self._run(self._orient_fn, p.astype(np.float32), chunk, workers)
 
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
-                 workers=None):
+                 workers=None, on_invalid="raise"):
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
-        ``frames`` (``[K, 3, 3]``, e.g. from a Compass bundle) or, by default, FLARE; LEAD-PN:
-        the code of the FLARE-oriented patch; SOUND: self-oriented."""
+        ``frames`` (``[K, 3, 3]`` rotations, e.g. from a Compass bundle) or, by default,
+        FLARE; LEAD-PN: the code of the FLARE-oriented patch; SOUND: self-oriented.
+        ``on_invalid`` as in :meth:`orient`."""
         self._can("describe")
-        p = self.patches(points, keypoints, radius, seed)
-        if not self.spec.describe_frames:
-            return self._run(self._describe_fn, p, chunk, workers)
-        if frames is None:
-            frames = self._run(FLARE_BATCH, p, chunk, workers)
-        frames = np.asarray(frames, np.float32)
-        if frames.shape != (len(p), 3, 3):
-            raise ValueError(f"frames must be [K, 3, 3] with K={len(p)}, got {frames.shape}")
-        # Patches and frames travel as one array so that one run_chunked call splits both.
-        both = np.concatenate([p.reshape(len(p), -1), frames.reshape(len(p), 9)], 1)
-        return self._run(self._describe_fn, both, chunk, workers)
+        checks.choice(on_invalid, "on_invalid", ON_INVALID)
+        stream = self.supports(points, keypoints, radius, seed)
+        if frames is not None:
+            if not self.spec.describe_frames:
+                raise checks.InputError("frames", f"None for a {self.kind} bundle (it orients "
+                                        "its patches itself)", checks.shown(frames))
+            stream.frames = checks.rotations(frames, stream.k)
+        stream.check(on_invalid)
+        out = stream_chunked(self._describe_fn, stream.make, stream.n, self._chunk(chunk),
+                             workers)
+        if stream.n == 0:                         # nothing to describe: the width still counts
+            unit = jax.ShapeDtypeStruct((1, self.config.data.n_points, 3), jnp.float32)
+            out = np.zeros((0, *jax.eval_shape(self._describe_fn, unit).shape[1:]))
+        return stream.scatter(out, None, on_invalid)
 
     # ---- jitted pieces ----------------------------------------------------------------------
 
     def __post_init__(self):
-        spec, n = self.spec, self.config.data.n_points
+        spec = self.spec
         if spec.orient is not None:
-            self._orient_fn = jax.jit(lambda x: spec.orient(self.model, self.variables, x))
+            self._orient_fn = jax.jit(lambda p: spec.orient(self.model, self.variables, p))
         if spec.describe is not None and spec.describe_frames:
-            def describe(x):
-                pts, frames = x[:, :n * 3].reshape(-1, n, 3), x[:, n * 3:].reshape(-1, 3, 3)
-                return spec.describe(self.model, self.variables, pts, frames)
+            def describe(p, frames=None):
+                frames = FLARE_BATCH(p) if frames is None else frames
+                return spec.describe(self.model, self.variables, p, frames)
             self._describe_fn = jax.jit(describe)
         elif spec.describe is not None:
-            self._describe_fn = jax.jit(lambda x: spec.describe(self.model, self.variables, x,
+            self._describe_fn = jax.jit(lambda p: spec.describe(self.model, self.variables, p,
                                                                 None))
 
 
+ON_INVALID = ("raise", "mask")
+
+
+class SupportStream:
+    """The supports of ``K`` keypoints (indices into ``points`` or coordinates, which are
+    queried, not added to the cloud), counted at once and drawn chunk by chunk: memory is that
+    of one chunk's neighbour lists, whatever K. Only the keypoints with at least
+    ``min_support`` points (the centre excluded) are drawn: ``rows`` of them, ``n`` in all.
+    :meth:`make` must be called on consecutive row ranges in order (the patch sampling is one
+    random stream, so the chunking does not change the patches)."""
+
+    def __init__(self, points, keypoints, radius, n_points, seed, min_support):
+        self.points = checks.cloud(points)
+        idx, coords = checks.keypoints(keypoints, len(self.points))
+        self.centres = self.points[idx] if coords is None else coords
+        self.radius, self.n_points, self.min_support = radius, n_points, min_support
+        self.tree = KDTree(self.points)
+        if len(self.centres):
+            # Points at the centre give no direction: they are not support.
+            self.counts = (self.tree.query_radius(self.centres, radius, count_only=True)
+                           - self.tree.query_radius(self.centres, 0.0, count_only=True))
+        else:
+            self.counts = np.zeros(0, np.int64)
+        self.valid = self.counts >= min_support
+        self.rows = np.flatnonzero(self.valid)
+        self.k, self.n = len(self.centres), len(self.rows)
+        self.frames = None
+        self._rng = np.random.default_rng(seed)
+
+    def check(self, on_invalid):
+        if on_invalid == "raise" and not self.valid.all():
+            first = int(np.argmin(self.valid))
+            raise checks.InputError(
+                "keypoints", f"supports (radius={self.radius:g}) of at least {self.min_support} "
+                f"points", f"{self.k - self.n} of {self.k} with fewer (the first, keypoint "
+                f"{first}, has {int(self.counts[first])}); pass on_invalid='mask' to get a "
+                f"valid mask instead", verb="have")
+
+    def make(self, start, stop):
+        """Inputs of rows ``start:stop``: unit patches ``[k, N, 3]`` (and frames)."""
+        rows = self.rows[start:stop]
+        got = patch_lib.patches_around(self.points, self.centres[rows], self.radius,
+                                       self.n_points, self._rng, 1, self.tree)
+        unit = got.points / np.float32(self.radius)
+        return (unit,) if self.frames is None else (unit, self.frames[rows])
+
+    def scatter(self, values, row_shape, on_invalid):
+        """The ``n`` computed rows back at their keypoints, NaN at the invalid ones."""
+        values = np.asarray(values, np.float32)
+        if values.shape[0] == 0:
+            values = values.reshape(0, *(row_shape or (0,)))
+        out = np.full((self.k, *values.shape[1:]), np.nan, np.float32)
+        out[self.rows] = values
+        return out if on_invalid == "raise" else (out, self.valid.copy())
+
+
 def run_chunked(fn, x, chunk=None, workers=None):
-    """``fn`` over ``x`` in chunks of a fixed size (the last one padded), so a jitted ``fn``
-    compiles once whatever the number of rows; ``workers`` chunks run at a time (default:
-    :func:`default_workers`).
+    """``fn`` over the rows of ``x`` in chunks (:func:`stream_chunked`)."""
+    x = np.asarray(x)
+    return stream_chunked(fn, lambda a, b: (x[a:b],), len(x), chunk, workers)
+
+
+def stream_chunked(fn, make, n, chunk=None, workers=None):
+    """``fn(*make(a, b))`` over rows ``0..n`` in chunks of a fixed size (the last one padded),
+    so a jitted ``fn`` compiles once whatever ``n``; one thread prepares the next chunk's
+    inputs (in order) while ``workers`` chunks run (default :func:`default_workers`), so at
+    most ``workers + 1`` chunks exist at a time.
 
     Concurrent chunks are what uses a multi-core CPU here: XLA runs the loops of the fused
     inference path (:mod:`~sphere_jax.spherical.fused`) on one thread, so one chunk at a time
     keeps one core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
     Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
     """
-    chunk = DEFAULT_CHUNK if chunk is None else int(chunk)
-    workers = default_workers() if workers is None else int(workers)
-    if chunk < 1 or workers < 1:
-        raise ValueError(f"chunk and workers must be at least 1, got chunk={chunk}, "
-                         f"workers={workers}")
-    x = np.asarray(x)
-    if len(x) == 0:
+    chunk = checks.positive(DEFAULT_CHUNK if chunk is None else chunk, "chunk", integer=True)
+    workers = checks.positive(default_workers() if workers is None else workers, "workers",
+                              integer=True)
+    if n == 0:
         return np.zeros((0,))
+    starts = list(range(0, n, chunk))
 
-    def run(i):
-        part = x[i:i + chunk]
-        pad = chunk - len(part)
+    def prepare(a):
+        parts = make(a, min(a + chunk, n))
+        rows = len(parts[0])
+        pad = chunk - rows
         if pad:
-            part = np.concatenate([part, np.repeat(part[-1:], pad, 0)])
-        return np.asarray(fn(jnp.asarray(part)))[:chunk - pad]
+            parts = tuple(np.concatenate([p, np.repeat(p[-1:], pad, 0)]) for p in parts)
+        return parts, rows
 
-    starts = range(0, len(x), chunk)
+    def compute(parts, rows):
+        return np.asarray(fn(*(jnp.asarray(p) for p in parts)))[:rows]
+
+    out, running = [], collections.deque()
     workers = min(len(starts), workers)
-    if workers <= 1:
-        return np.concatenate([run(i) for i in starts])
-    with concurrent.futures.ThreadPoolExecutor(workers) as pool:
-        return np.concatenate(list(pool.map(run, starts)))
+    with concurrent.futures.ThreadPoolExecutor(1) as prep, \
+            concurrent.futures.ThreadPoolExecutor(workers) as pool:
+        ahead = prep.submit(prepare, starts[0])
+        for j in range(len(starts)):
+            parts, rows = ahead.result()
+            if j + 1 < len(starts):
+                ahead = prep.submit(prepare, starts[j + 1])
+            running.append(pool.submit(compute, parts, rows))
+            if len(running) >= workers:
+                out.append(running.popleft().result())
+        out.extend(f.result() for f in running)
+    return np.concatenate(out)
 
 
 def default_workers() -> int:
@@ -166,19 +279,10 @@ def default_workers() -> int:
 def extract_unit_patches(points, keypoints, radius, n_points, seed=0):
     """Patches ``[K, n_points, 3]`` in units of ``radius`` around ``keypoints`` (indices ``[K]``
     or coordinates ``[K, 3]``); every keypoint must have a neighbour."""
-    points = np.asarray(points, np.float32)
-    keypoints = np.asarray(keypoints)
-    if keypoints.ndim == 2 and keypoints.shape[1] == 3:          # coordinates: add as points
-        idx = np.arange(len(points), len(points) + len(keypoints))
-        points = np.concatenate([points, keypoints.astype(np.float32)])
-        keypoints = idx
-    got = patch_lib.extract_patches(points, keypoints, radius, n_points,
-                                    np.random.default_rng(seed), min_points=1,
-                                    tree=KDTree(points))
-    if len(got.keypoints) != len(keypoints):
-        missing = len(keypoints) - len(got.keypoints)
-        raise ValueError(f"{missing} keypoint(s) have no neighbour within radius={radius}")
-    return got.points / radius
+    stream = SupportStream(points, keypoints, checks.positive(radius, "radius"),
+                           checks.positive(n_points, "n_points", integer=True), seed, 1)
+    stream.check("raise")
+    return stream.make(0, stream.n)[0]
 
 
 def bundle_path(name_or_path) -> str:
@@ -195,7 +299,18 @@ def load_bundle(path) -> Bundle:
     shipped one by model kind (:func:`bundle_path`)."""
     path = bundle_path(path)
     config = bundle_files.read_config(path)
-    return Bundle(models.build(config), bundle_files.read_variables(path), config)
+    try:
+        model = models.build(config)
+    except Exception as e:                    # an unknown kind, a field the module lacks
+        raise checks.BundleError(path, f"its config builds no model "
+                                       f"({bundle_files.first_line(e)})") from None
+    variables = bundle_files.read_variables(path)
+    key = jax.random.PRNGKey(0)
+    x = jax.ShapeDtypeStruct((1, config.data.n_points, 3), jnp.float32)
+    expected = jax.eval_shape(functools.partial(model.init, train=False),
+                              {"params": key, "dropout": key}, x)
+    bundle_files.check_fits(path, variables, {k: expected.get(k, {}) for k in variables})
+    return Bundle(model, variables, config)
 
 
 def cached_bundle(path) -> Bundle:

@@ -21,12 +21,15 @@ import ml_collections
 import numpy as np
 import orbax.checkpoint as ocp
 
+from sphere_jax.checks import BundleError
+
 CONFIG = "config.json"
 VARIABLES = "variables"
 TRAINING_DATA = "training_data.json"
 
 
-def _write_json(path, text):
+def write_json(path, text):
+    """Write ``text`` to ``path`` atomically (a temporary name, then a rename)."""
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
         f.write(text)
@@ -50,9 +53,9 @@ def save(path, config, variables, training_data=None):
         # Host copies: a bundle does not depend on the devices it was trained on.
         ckpt.save(target, jax.tree_util.tree_map(np.asarray, variables))
     if primary:
-        _write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
+        write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
         if training_data is not None:
-            _write_json(os.path.join(path, TRAINING_DATA), json.dumps(training_data, indent=1))
+            write_json(os.path.join(path, TRAINING_DATA), json.dumps(training_data, indent=1))
     return path
 
 
@@ -64,22 +67,61 @@ def read_config(path) -> ml_collections.ConfigDict:
     """The config a bundle was trained with."""
     path = os.path.abspath(str(path))
     if not is_bundle(path):
-        raise FileNotFoundError(f"{path} is not a bundle (no {CONFIG})")
-    with open(os.path.join(path, CONFIG)) as f:
-        return ml_collections.ConfigDict(json.load(f))
+        raise BundleError(path, f"not a bundle (no {CONFIG}: a bundle is the 'bundle' folder "
+                                "a training run writes)")
+    try:
+        with open(os.path.join(path, CONFIG)) as f:
+            config = ml_collections.ConfigDict(json.load(f))
+    except (OSError, ValueError) as e:
+        raise BundleError(path, f"{CONFIG} is unreadable ({type(e).__name__}: {e})") from None
+    if not isinstance(config.get("model"), str) or "data" not in config:
+        raise BundleError(path, f"{CONFIG} is not a training config (no 'model' or 'data')")
+    return config
 
 
 def read_variables(path) -> dict:
     """The bundle's ``{'params', 'batch_stats'}`` on this process's default device, whatever
     devices they were saved from."""
     target = os.path.join(os.path.abspath(str(path)), VARIABLES)
-    with ocp.StandardCheckpointer() as ckpt:
-        meta = ckpt.metadata(target)
-        tree = getattr(meta, "item_metadata", meta)
-        device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
-        abstract = jax.tree_util.tree_map(
-            lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
-        return ckpt.restore(target, abstract)
+    if not os.path.isdir(target):
+        raise BundleError(path, f"no {VARIABLES}/ folder (the weights)")
+    try:
+        with ocp.StandardCheckpointer() as ckpt:
+            meta = ckpt.metadata(target)
+            tree = getattr(meta, "item_metadata", meta)
+            device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+            abstract = jax.tree_util.tree_map(
+                lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
+            return ckpt.restore(target, abstract)
+    except Exception as e:        # orbax/TensorStore report corruption in many exception types
+        raise BundleError(path, f"the weights in {VARIABLES}/ cannot be restored (corrupt or "
+                                f"incomplete): {first_line(e)}") from None
+
+
+def first_line(error) -> str:
+    """The first line of a third-party error (TensorStore's run to a hundred)."""
+    text = str(error).strip().splitlines()
+    text = text[0].split(". See full")[0][:200] if text else ""
+    return f"{type(error).__name__}: {text}"
+
+
+def check_fits(path, variables, expected):
+    """Raise :class:`BundleError` naming the first parameter of ``variables`` whose path or
+    shape differs from ``expected`` (the abstract variables of the bundle's config's model)."""
+    flat = lambda t: {jax.tree_util.keystr(k): v for k, v in
+                      jax.tree_util.tree_flatten_with_path(t)[0]}
+    have, want = flat(variables), flat(expected)
+    for key in sorted(set(have) | set(want)):
+        if key not in have:
+            raise BundleError(path, f"its config's model needs parameter {key} "
+                                    f"{tuple(want[key].shape)}, which the weights lack")
+        if key not in want:
+            raise BundleError(path, f"the weights hold parameter {key}, which its config's "
+                                    f"model does not have (config and weights do not match)")
+        if tuple(have[key].shape) != tuple(want[key].shape):
+            raise BundleError(path, f"parameter {key} has shape {tuple(have[key].shape)} in "
+                                    f"the weights, {tuple(want[key].shape)} in its config's "
+                                    f"model (config and weights do not match)")
 
 
 def read_training_data(path) -> dict:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import os
 
+from sphere_jax import checks
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -60,7 +62,7 @@ def shipped_bundle(name, required=False):
     if os.path.isfile(os.path.join(path, "config.json")):
         return path
     if required:
-        raise FileNotFoundError(f"no shipped bundle {name!r} in {checkpoints_root()} (set "
+        raise checks.MissingError(f"no shipped bundle {name!r} in {checkpoints_root()} (set "
                                 f"SPHERE_JAX_CHECKPOINTS to the repository's checkpoints/)")
     return ""
 

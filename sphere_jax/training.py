@@ -13,6 +13,7 @@ import functools
 import json
 import os
 import time
+import warnings
 
 import jax
 import jax.numpy as jnp
@@ -23,7 +24,7 @@ import orbax.checkpoint as ocp
 from jax.sharding import PartitionSpec as P
 from tqdm import tqdm
 
-from sphere_jax import api, bundle, models, parallel
+from sphere_jax import api, bundle, checks, models, parallel
 from sphere_jax.data import pipeline
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.prefetch import Prefetch
@@ -157,6 +158,104 @@ def checkpoint_manager(workdir, config):
                                  options=options)
 
 
+WORKDIR_CONFIG = "config.json"
+
+
+def claim_workdir(workdir, config):
+    """Refuse a workdir whose checkpoints are another model's (restoring them would fail deep
+    in orbax, or worse, succeed on a same-shaped model)."""
+    path = os.path.join(workdir, WORKDIR_CONFIG)
+    mine = {"model": config.model, "model_kwargs": _plain(config.get("model_kwargs", {}))}
+    if os.path.isfile(path):
+        with open(path) as f:
+            theirs = json.load(f)
+        theirs = {k: theirs.get(k) for k in mine}
+        if theirs != mine and os.path.isdir(os.path.join(workdir, "checkpoints")):
+            raise checks.ConfigError(
+                f"--workdir {workdir} holds the checkpoints of model {theirs['model']} "
+                f"{theirs['model_kwargs']}; this config trains {mine['model']} "
+                f"{mine['model_kwargs']}: choose another workdir")
+
+
+def record_workdir(workdir, config):
+    """Written once the run has restored or started: what :func:`claim_workdir` checks."""
+    if jax.process_index() == 0:
+        bundle.write_json(os.path.join(workdir, WORKDIR_CONFIG), config.to_json(indent=1))
+
+
+def _plain(c):
+    return json.loads(json.dumps(c.to_dict() if hasattr(c, "to_dict") else c))
+
+
+def restore_newest(mngr, workdir, config, state, mesh):
+    """``(step, state, manager)`` from the newest checkpoint that restores. One that does not
+    (a truncated file, a crash mid-write) is reported, moved to ``workdir/unrestorable/`` (kept,
+    not deleted) and the one before is tried."""
+    sharding = parallel.replicated(mesh)
+    abstract = jax.tree_util.tree_map(
+        lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=sharding), state)
+    want = _shapes(abstract)
+    for step in sorted(mngr.all_steps(), reverse=True):
+        have = _checkpoint_shapes(workdir, step)
+        if have is not None and have != want:
+            diff = sorted(set(have.items()) ^ set(want.items()))[0][0]
+            raise checks.ConfigError(
+                f"--workdir {workdir} holds checkpoints of another model than this config's "
+                f"{config.model} (step {step} differs at {diff}): choose another workdir")
+        try:
+            return step, mngr.restore(step, args=ocp.args.StandardRestore(abstract)), mngr
+        except Exception as e:                 # orbax/TensorStore: many exception types
+            warnings.warn(f"checkpoint of step {step} in {workdir} cannot be restored "
+                          f"({bundle.first_line(e)}); moved to unrestorable/{step}, trying the "
+                          f"one before", stacklevel=2)
+            if jax.process_index() == 0:
+                aside = os.path.join(workdir, "unrestorable")
+                os.makedirs(aside, exist_ok=True)
+                os.replace(os.path.join(workdir, "checkpoints", str(step)),
+                           os.path.join(aside, f"{step}-{int(time.time())}"))
+            mngr.close()
+            mngr = checkpoint_manager(workdir, config)
+    raise checks.SphereJaxError(f"no checkpoint in {workdir}/checkpoints restores (the "
+                                f"unrestorable ones are in {workdir}/unrestorable); delete the "
+                                f"workdir's checkpoints to start afresh")
+
+
+def _shapes(tree):
+    """The model's part of a state (the optimiser's namedtuples come back from metadata as
+    plain containers, with other key strings)."""
+    return {jax.tree_util.keystr(k): tuple(v.shape)
+            for part in ("params", "batch_stats")
+            for k, v in jax.tree_util.tree_flatten_with_path({part: tree[part]})[0]}
+
+
+def _checkpoint_shapes(workdir, step):
+    """Parameter path -> shape of a checkpoint's metadata; None when it is unreadable."""
+    try:
+        with ocp.StandardCheckpointer() as ckpt:
+            meta = ckpt.metadata(os.path.join(workdir, "checkpoints", str(step), "default"))
+        return _shapes(getattr(meta, "item_metadata", meta))
+    except Exception:
+        return None
+
+
+class TrainingError(checks.SphereJaxError):
+    """Training cannot go on (a non-finite loss)."""
+
+
+def check_finite(metrics, step, mngr):
+    """Stop at the first non-finite loss, before anything is saved from it: the newest
+    checkpoint stays the last good state and no bundle is written."""
+    loss = float(metrics["loss"])
+    if np.isfinite(loss):
+        return
+    others = ", ".join(f"{k}={float(v):.4g}" for k, v in metrics.items() if k != "loss")
+    kept = mngr.latest_step()
+    raise TrainingError(f"step {step}: the loss is {loss} ({others}); training stopped. "
+                        + (f"The checkpoint of step {kept} is kept" if kept is not None else
+                           "No checkpoint was written yet")
+                        + "; no bundle was written. Lower train.learning_rate or check the data.")
+
+
 def _truncate_metrics(path, last_step):
     """Drop metric lines logged after the checkpoint we resume from (they will be redone)."""
     if not os.path.isfile(path):
@@ -185,7 +284,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     evaluate, write a bundle. ``init_variables`` (params and batch_stats, e.g. from a bundle)
     start a fresh run from trained weights (test-time adaptation). Returns the final state and
     the last metrics."""
+    checks.config_values(config)
     os.makedirs(workdir, exist_ok=True)
+    claim_workdir(workdir, config)
     source = build_source(config)
     if models.spec(config.model).labelled:
         with config.unlocked():
@@ -211,13 +312,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
                      opt_state=tx.init(variables["params"]))
         state = parallel.replicate(state, mesh)
     if mngr.latest_step() is not None:
-        start = mngr.latest_step()
-        sharding = parallel.replicated(mesh)
-        abstract = jax.tree_util.tree_map(
-            lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=sharding), state)
-        state = mngr.restore(start, args=ocp.args.StandardRestore(abstract))
+        start, state, mngr = restore_newest(mngr, workdir, config, state, mesh)
         if main_host:
             _truncate_metrics(metrics_path, start)
+    record_workdir(workdir, config)
     last = {}
     t_last, seen, wait_last = time.perf_counter(), 0, 0.0
     bar = tqdm(total=config.train.steps, initial=start, disable=not (progress and main_host),
@@ -227,11 +325,12 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
             Prefetch(make, range(start, config.train.steps)) as batches:
         for step, batch in batches:
             state, metrics = train_step(state, batch)
+            check_finite(metrics, step + 1, mngr)              # waits for the step
             seen += config.train.batch_size
             done = step + 1
             bar.update(1)
             if done % config.train.log_every == 0 or done == config.train.steps:
-                last = {k: float(v) for k, v in metrics.items()}      # waits for the step
+                last = {k: float(v) for k, v in metrics.items()}
                 now = time.perf_counter()
                 last.update(step=done, patches_per_s=round(seen / (now - t_last), 2),
                             data_wait_frac=round((batches.wait_s - wait_last) / (now - t_last), 4))

@@ -12,26 +12,15 @@ import dataclasses
 import numpy as np
 from sklearn.neighbors import KDTree
 
-
-def check_cloud(points, name="points"):
-    points = np.asarray(points)
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise ValueError(f"{name} must be [N, 3], got {points.shape}")
-    if len(points) == 0:
-        raise ValueError(f"{name} is empty")
-    if not np.all(np.isfinite(points)):
-        raise ValueError(f"{name} has {int(np.sum(~np.isfinite(points).all(1)))} non-finite "
-                         f"point(s)")
-    return points
+from sphere_jax import checks
 
 
 def voxel_downsample(points, voxel, return_index=False):
     """One point per occupied voxel of side ``voxel``: the centroid of the voxel's points
     (``return_index=True``: the index of the point nearest that centroid instead, so
     colours/normals can follow)."""
-    points = check_cloud(points)
-    if not voxel > 0:
-        raise ValueError(f"voxel must be > 0, got {voxel}")
+    points = checks.cloud(points)
+    voxel = checks.positive(voxel, "voxel")
     cells = np.floor((points - points.min(0)) / voxel).astype(np.int64)
     keys = np.ravel_multi_index(cells.T, tuple(cells.max(0) + 1))   # one int per voxel: fast
     _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
@@ -56,7 +45,7 @@ def uniform_keypoints(points, leaf):
 
 def random_keypoints(points, n, rng: np.random.Generator):
     """``n`` distinct random indices (all of them if the cloud is smaller)."""
-    points = check_cloud(points)
+    points = checks.cloud(points)
     return np.sort(rng.choice(len(points), size=min(n, len(points)), replace=False))
 
 
@@ -65,7 +54,7 @@ def iss_keypoints(points, salient_radius=0.0, non_max_radius=0.0, gamma_21=0.975
     """Intrinsic Shape Signature keypoints (open3d); radii 0 let open3d pick from resolution.
     Returns indices into ``points``."""
     import open3d as o3d
-    points = check_cloud(points)
+    points = checks.cloud(points)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
     kp = o3d.geometry.keypoint.compute_iss_keypoints(pcd, salient_radius, non_max_radius,
                                                      gamma_21, gamma_32, min_neighbors)
@@ -91,29 +80,45 @@ def extract_patches(points, keypoints, radius, n_points, rng: np.random.Generato
     each keypoint (indices into ``points``), the keypoint excluded. Keypoints with fewer than
     ``min_points`` neighbours are dropped (the seed skips supports under 300 points); the
     result says which were kept."""
-    points = check_cloud(points)
-    keypoints = np.asarray(keypoints, np.int64).reshape(-1)
-    if len(keypoints) and (keypoints.min() < 0 or keypoints.max() >= len(points)):
-        raise ValueError(f"keypoints must index points (0..{len(points) - 1})")
-    if not radius > 0:
-        raise ValueError(f"radius must be > 0, got {radius}")
-    if n_points < 1:
-        raise ValueError(f"n_points must be >= 1, got {n_points}")
+    points = checks.cloud(points)
+    keypoints, _ = checks.keypoints(np.asarray(keypoints, np.int64).reshape(-1), len(points))
+    got = patches_around(points, points[keypoints], radius, n_points, rng, min_points, tree)
+    return Patches(got.points[got.valid], keypoints[got.valid], got.counts[got.valid])
+
+
+@dataclasses.dataclass
+class Supports:
+    """``points [K, N, 3]`` float32 relative to each centre (zeros where not ``valid``);
+    ``counts [K]`` neighbours each was drawn from; ``valid [K]``: ``counts >= min_points``."""
+    points: np.ndarray
+    counts: np.ndarray
+    valid: np.ndarray
+
+
+def patches_around(points, centres_Kx3, radius, n_points, rng: np.random.Generator,
+                   min_points=1, tree=None) -> Supports:
+    """Patches of ``n_points`` drawn with replacement from the points of ``points`` within
+    ``radius`` of each centre (which need not be a point of the cloud), points at the centre
+    itself excluded: they give no direction. Random numbers are drawn for the valid centres
+    only, in order, so consecutive calls on consecutive chunks equal one call on all."""
+    radius = checks.positive(radius, "radius")
+    n_points = checks.positive(n_points, "n_points", integer=True)
+    centres_Kx3 = np.asarray(centres_Kx3, np.float32).reshape(-1, 3)
     tree = KDTree(points) if tree is None else tree
-    neigh = tree.query_radius(points[keypoints], radius) if len(keypoints) else []
-    # Drop the keypoint itself (and exact duplicates of it): no direction from the centre.
-    flat = np.concatenate(neigh) if len(neigh) else np.zeros(0, np.int64)
-    owner = np.repeat(np.arange(len(keypoints)), [len(n) for n in neigh])
-    keep = np.any(points[flat] != points[keypoints[owner]], axis=1)
+    neigh = tree.query_radius(centres_Kx3, radius) if len(centres_Kx3) else []
+    flat = np.concatenate(neigh).astype(np.int64) if len(neigh) else np.zeros(0, np.int64)
+    owner = np.repeat(np.arange(len(centres_Kx3)), [len(n) for n in neigh])
+    keep = np.any(points[flat] != centres_Kx3[owner], axis=1)
     flat, owner = flat[keep], owner[keep]
-    counts = np.bincount(owner, minlength=len(keypoints))
+    counts = np.bincount(owner, minlength=len(centres_Kx3))
     valid = counts >= max(min_points, 1)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
     kept = np.nonzero(valid)[0]
     pick = starts[kept, None] + np.floor(
         rng.random((len(kept), n_points)) * counts[kept, None]).astype(np.int64)
-    local = points[flat[pick]] - points[keypoints[kept]][:, None, :]
-    return Patches(local.astype(np.float32), keypoints[kept], counts[kept])
+    out = np.zeros((len(centres_Kx3), n_points, 3), np.float32)
+    out[kept] = points[flat[pick]] - centres_Kx3[kept][:, None, :]
+    return Supports(out, counts, valid)
 
 
 def unit_shapes(shapes_BxNx3):

@@ -11,7 +11,7 @@ import os
 import numpy as np
 from sklearn.neighbors import KDTree
 
-from sphere_jax import paths
+from sphere_jax import checks, paths
 from sphere_jax.data import augment, fusion, patches
 from sphere_jax.data.readers import io, rgbd
 from sphere_jax.data.generators import synthetic
@@ -25,7 +25,7 @@ def find_scans(root):
     if os.path.isfile(root) and root.endswith((".ply", ".pcd")):
         return [root]
     if not os.path.isdir(root):
-        raise FileNotFoundError(f"data root {root!r} is neither a scan file nor a folder")
+        raise checks.MissingError(f"data root {root!r} is neither a scan file nor a folder")
     if rgbd.is_frame_sequence(root):
         return fusion.sequence_fragments(root)
     frags = sorted(glob.glob(os.path.join(root, "**", "cloud_bin_*.ply"), recursive=True))
@@ -34,7 +34,7 @@ def find_scans(root):
     found = sorted(p for ext in ("ply", "pcd")
                    for p in glob.glob(os.path.join(root, "**", f"*.{ext}"), recursive=True))
     if not found:
-        raise FileNotFoundError(f"no .ply or .pcd scans under {root!r}")
+        raise checks.MissingError(f"no .ply or .pcd scans under {root!r}")
     return found
 
 
@@ -181,7 +181,7 @@ class ShapeSource:
         self.n_points, self.seed = n_points, seed
         root = str(root)
         if not os.path.isdir(root):
-            raise FileNotFoundError(f"shape root {root!r} is not a folder")
+            raise checks.MissingError(f"shape root {root!r} is not a folder")
         names = next((os.path.join(root, f) for f in ("shape_names.txt",
                                                       "modelnet40_shape_names.txt")
                       if os.path.isfile(os.path.join(root, f))), None)
@@ -192,7 +192,7 @@ class ShapeSource:
         elif glob.glob(os.path.join(root, "*", "train", "*.off")):
             self.classes, self.splits = _load_off(root, seed)
         else:
-            raise FileNotFoundError(f"{root!r} holds no ModelNet layout (shape_names.txt with "
+            raise checks.MissingError(f"{root!r} holds no ModelNet layout (shape_names.txt with "
                                     f".txt shapes, <class>/train/*.off meshes, or *.h5 files)")
         if not self.splits["train"][0]:
             raise ValueError(f"no training shapes found under {root!r}")

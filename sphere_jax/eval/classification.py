@@ -14,7 +14,7 @@ import jax
 import ml_collections
 import numpy as np
 
-from sphere_jax import api, training
+from sphere_jax import api, checks, training
 from sphere_jax import bundle as bundle_files
 from sphere_jax.data import augment
 from sphere_jax.eval import report
@@ -52,7 +52,7 @@ def method_config(config, method):
         raise ValueError(f"classification method must be one of {METHODS}, got {method!r}")
     c.orient_bundle = config.compass_bundle if method == "compass+pointnet" else ""
     if method == "compass+pointnet" and not bundle_files.is_bundle(c.orient_bundle):
-        raise FileNotFoundError(
+        raise checks.MissingError(
             f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
             f"python -m experiments.train --config=compass_shapes:cpu")
     return c

@@ -54,18 +54,13 @@ def _neighbourhoods(frag: Fragment, indices, radius):
     return radius_neighbourhoods(frag.points, frag.points[indices], radius, frag.tree)
 
 
-def _on_supported(f: Fragment, radius, fn):
-    """``fn(keypoints) -> [k, D]`` on the keypoints with a neighbour within ``radius``; the
-    isolated ones (stray sensor points) get zero rows, like the hand-crafted descriptors."""
-    counts = f.tree.query_radius(f.points[f.keypoints], radius, count_only=True)
-    ok = counts > 1                                            # the keypoint itself counts
-    if ok.all():
-        return np.asarray(fn(f.keypoints), np.float32)
-    part = np.asarray(fn(f.keypoints[ok]), np.float32) if ok.any() else None
-    out = np.zeros((len(f.keypoints), part.shape[1] if part is not None else 1), np.float32)
-    if part is not None:
-        out[ok] = part
-    return out
+def _masked(values_valid, fill):
+    """Results of ``on_invalid='mask'`` with ``fill`` where a keypoint's support was too small
+    to describe (stray sensor points): zero descriptors, like the hand-crafted ones' empty
+    supports, and identity frames, which a repeatability test scores as it falls."""
+    values, valid = values_valid
+    values[~valid] = fill
+    return values
 
 
 def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
@@ -92,14 +87,14 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
         lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
 
         def describe(f):
-            def run(kp):
-                frames = compass.orient(f.points, kp, radius=radius, chunk=chunk)
-                return lead.describe(f.points, kp, radius=radius, chunk=chunk, frames=frames)
-            return _on_supported(f, radius, run)
+            frames = _masked(compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
+                                            on_invalid="mask"), np.eye(3))
+            return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
+                                         frames=frames, on_invalid="mask"), 0)
         return describe
     model = _bundle(bundles[name])
-    return lambda f: _on_supported(
-        f, radius, lambda kp: model.describe(f.points, kp, radius=radius, chunk=chunk))
+    return lambda f: _masked(model.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
+                                            on_invalid="mask"), 0)
 
 
 def lrf(name, radius, bundles=None, chunk=None):
@@ -121,7 +116,8 @@ def lrf(name, radius, bundles=None, chunk=None):
     if bundles_needed([name], bundles):
         raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
     model = _bundle(bundles[name])
-    return lambda f, idx: np.asarray(model.orient(f.points, idx, radius=radius, chunk=chunk))
+    return lambda f, idx: _masked(model.orient(f.points, idx, radius=radius, chunk=chunk,
+                                               on_invalid="mask"), np.eye(3))
 
 
 # ---- choice from an evaluation config ----------------------------------------------------------

@@ -19,6 +19,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 from tqdm.auto import tqdm
 
+from sphere_jax import checks
 from sphere_jax.data import augment, patches, pipeline
 from sphere_jax.data.readers import stanford, threedmatch
 from sphere_jax.eval.neighbourhood import estimate_normals
@@ -96,7 +97,7 @@ def scene_gt_dir(gt_root, scene):
               gt_root):
         if os.path.isfile(os.path.join(d, "gt.log")):
             return d
-    raise FileNotFoundError(f"data.gt={gt_root!r} has no gt.log for scene {scene!r} (looked "
+    raise checks.MissingError(f"data.gt={gt_root!r} has no gt.log for scene {scene!r} (looked "
                             f"for {scene}-evaluation/gt.log and {scene}/gt.log)")
 
 
@@ -107,9 +108,9 @@ def find_pair_sets(root, voxel=0.02, min_overlap=0.10, gt_root=None):
     ``cloud_bin_K.ply``; pairs whose clouds are absent are skipped with a warning."""
     root = os.path.normpath(str(root))
     if not os.path.isdir(root):
-        raise FileNotFoundError(f"data root {root!r} is not a folder")
+        raise checks.MissingError(f"data root {root!r} is not a folder")
     if gt_root is not None and not os.path.isdir(str(gt_root)):
-        raise FileNotFoundError(f"data.gt={gt_root!r} is not a folder")
+        raise checks.MissingError(f"data.gt={gt_root!r} is not a folder")
     gt = (lambda d: None) if gt_root is None else (
         lambda d: scene_gt_dir(str(gt_root), os.path.basename(d)))
     confs = sorted(glob.glob(os.path.join(root, "*.conf")) +
@@ -121,7 +122,7 @@ def find_pair_sets(root, voxel=0.02, min_overlap=0.10, gt_root=None):
     dirs = sorted({os.path.dirname(p) for p in glob.glob(os.path.join(root, "*",
                                                                         "cloud_bin_*.ply"))})
     if not dirs:
-        raise FileNotFoundError(f"{root}: no Stanford .conf, no cloud_bin_K.ply fragments and "
+        raise checks.MissingError(f"{root}: no Stanford .conf, no cloud_bin_K.ply fragments and "
                                 f"no scene folders holding them")
     return [fragment_scene(threedmatch.load_fragment_scene(d, gt(d))) for d in dirs]
 

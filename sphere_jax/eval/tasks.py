@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import importlib
 
+from sphere_jax import checks
+
 TASKS = {
     "registration": "sphere_jax.eval.registration",      # seed 4.1-4.4: FMR, inlier ratio, RR
     "lrf": "sphere_jax.eval.repeatability",              # seed 3.2: LRF repeatability
@@ -23,10 +25,13 @@ TASKS = {
 def task_module(name):
     """The module of task ``name`` (imported on demand: each pulls in its own libraries)."""
     if name not in TASKS:
-        raise ValueError(f"config.task must be one of {', '.join(TASKS)}; got {name!r}")
+        raise checks.ConfigError("config.task", f"one of {', '.join(TASKS)}", name)
     return importlib.import_module(TASKS[name])
 
 
 def run(config, workdir, progress=True):
-    """Run the evaluation ``config.task``; returns ``(rows, markdown)``."""
-    return task_module(config.task).run(config, workdir, progress)
+    """Run the evaluation ``config.task``; returns ``(rows, markdown)``. Config values are
+    checked first (:func:`sphere_jax.checks.config_values`)."""
+    module = task_module(config.task)
+    checks.config_values(config)
+    return module.run(config, workdir, progress)

@@ -10,6 +10,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
+from sphere_jax import checks
 from sphere_jax.spherical import correlation, fused, transforms
 from sphere_jax.spherical.correlation import KernelGrid
 
@@ -53,6 +54,13 @@ class _SphericalConv(nn.Module):
             c_in = x.channels
         else:
             grid_ndim = 3 if self.on_so3 else 2
+            if x.ndim != grid_ndim + 2:
+                # An SO(3) grid [N, C, 2B, 2B, 2B] would otherwise pass as S2 grids of a batch
+                # [N, C] with 2B channels: the rank is what tells them apart.
+                form = ", ".join(["2B"] * grid_ndim)
+                raise checks.InputError(f"the input of {type(self).__name__}",
+                                        f"an {kind} grid [N, C, {form}]",
+                                        f"shape {tuple(x.shape)}")
             b = transforms.grid_bandwidth(x, grid_ndim)
             if b != self.b_in:
                 raise ValueError(f"{type(self).__name__} expects b_in={self.b_in} (grid axes of "

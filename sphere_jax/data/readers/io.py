@@ -12,14 +12,7 @@ import re
 
 import numpy as np
 
-
-class DataError(ValueError):
-    """A data file is missing, truncated or malformed."""
-
-    def __init__(self, path, what, line=None):
-        where = f"{path}" + (f", line {line}" if line is not None else "")
-        super().__init__(f"{where}: {what}")
-        self.path, self.line = str(path), line
+from sphere_jax.checks import DataError  # noqa: F401  (the readers' error, re-exported)
 
 
 @dataclasses.dataclass
@@ -181,15 +174,25 @@ def read_ply(path) -> Cloud:
                 data[name] = _ply_ascii_element(path, lines[row:row + count], props,
                                                 header_lines + row + 1)
             row += count
+        extra = [k for k in range(row, len(lines)) if lines[k].strip()]
+        if extra:
+            raise DataError(path, f"{len(extra)} row(s) after the last element the header "
+                                  f"announces (its counts are wrong)", header_lines + extra[0] + 1)
     else:
         endian = "<" if fmt == "binary_little_endian" else ">"
-        offset = 0
+        offset, complete = 0, True
         for name, count, props in elements:
-            if "vertex" in data and ("face" in data or all(e[0] != "face" for e in elements)):
-                break                                  # the rest (e.g. a range grid) is unused
+            if "vertex" in data and ("face" in data or all(e[0] != "face" for e in elements)) \
+                    and any(p[2] is not None for p in props):
+                complete = False               # an unused list element (a range grid): skip
+                break
             parsed, offset = _ply_binary_element(path, body, offset, count, props, endian)
             if name in ("vertex", "face"):
                 data[name] = parsed
+        if complete:
+            _check_binary_size(path, body, offset, elements)
+        if "vertex" in data:
+            _check_endianness(path, data["vertex"], fmt)
     if "vertex" not in data:
         raise DataError(path, "PLY has no 'vertex' element")
     v = data["vertex"]
@@ -212,6 +215,40 @@ def read_ply(path) -> Cloud:
             raise DataError(path, "face element lacks vertex_indices")
         faces = _triangulate(path, f[key], len(points))
     return _finite_cloud(path, points, normals, colors, faces)
+
+
+def _check_binary_size(path, body, used, elements):
+    """A body longer than its elements by a vertex or more means the header's counts are
+    wrong (reading them would silently drop points); a few bytes (a final newline) pass."""
+    vertex = next((e for e in elements if e[0] == "vertex"), None)
+    record = sum(np.dtype(t).itemsize for _, t, _ in vertex[2]) if vertex else 1
+    if len(body) - used >= record:
+        counts = ", ".join(f"{n} {name}" for name, n, _ in elements)
+        raise DataError(path, f"{len(body) - used} bytes after the elements the header "
+                              f"announces ({counts}): its counts are wrong")
+
+
+def _check_endianness(path, vertex, fmt):
+    """Coordinates read in the wrong byte order are mostly absurd (1e38, 1e-40); if the other
+    order gives sane ones, the header's format is wrong."""
+    xyz = [vertex[c] for c in "xyz" if c in vertex]
+    if not xyz or xyz[0].dtype.kind != "f" or len(xyz[0]) == 0:
+        return
+    a = np.stack(xyz, 1)
+
+    def sane(v):                 # over the finite values: organised scans mark holes NaN
+        with np.errstate(all="ignore"):
+            mag = np.abs(v[np.isfinite(v)].astype(np.float64))
+            return float(np.mean((mag == 0) | ((mag > 1e-20) & (mag < 1e9)))) if mag.size else 0.0
+
+    if sane(a) < 0.9:
+        other = sane(a.byteswap().view(a.dtype.newbyteorder()))
+        if other > 0.99:
+            raise DataError(path, f"the header says {fmt}, but the coordinates read that way "
+                                  f"are absurd (|x| up to {np.nanmax(np.abs(a)):.3g}) and read "
+                                  f"in the other byte order are not: the format line is wrong")
+        raise DataError(path, f"{100 * (1 - sane(a)):.0f} % of the coordinates are absurd "
+                              f"(|x| up to {np.nanmax(np.abs(a)):.3g}): corrupt data")
 
 
 def _ply_ascii_element(path, lines, props, first_line):
@@ -302,7 +339,7 @@ def read_pcd(path) -> Cloud:
     check_exists(path)
     with open(path, "rb") as f:
         raw = f.read()
-    header, pos, line_no = {}, 0, 0
+    header, lines_of, pos, line_no = {}, {}, 0, 0
     while True:
         end = raw.find(b"\n", pos)
         if end < 0:
@@ -312,32 +349,53 @@ def read_pcd(path) -> Cloud:
         if not line or line.startswith("#"):
             continue
         key, *vals = line.split()
-        header[key.upper()] = vals
+        header[key.upper()], lines_of[key.upper()] = vals, line_no
         if key.upper() == "DATA":
             break
     for key in ("FIELDS", "SIZE", "TYPE", "POINTS"):
         if key not in header:
             raise DataError(path, f"PCD header lacks {key}")
+    def ints(key, default=None):
+        vals = header.get(key, default)
+        if not vals or not all(re.fullmatch(r"\d+", v) for v in vals):
+            raise DataError(path, f"{key} must be non-negative integers, got "
+                                  f"{' '.join(vals or [])!r}", lines_of.get(key))
+        return [int(v) for v in vals]
+
     fields = header["FIELDS"]
-    counts = [int(c) for c in header.get("COUNT", ["1"] * len(fields))]
-    if not (len(fields) == len(header["SIZE"]) == len(header["TYPE"]) == len(counts)):
-        raise DataError(path, "FIELDS, SIZE, TYPE and COUNT have different lengths")
-    n = int(header["POINTS"][0])
+    counts = ints("COUNT", ["1"] * len(fields))
+    sizes = ints("SIZE")
+    if not (len(fields) == len(sizes) == len(header["TYPE"]) == len(counts)):
+        raise DataError(path, "FIELDS, SIZE, TYPE and COUNT have different lengths",
+                        lines_of["FIELDS"])
+    n = ints("POINTS")[0]
+    if "WIDTH" in header and "HEIGHT" in header:
+        w, h = ints("WIDTH")[0], ints("HEIGHT")[0]
+        if w * h != n:
+            raise DataError(path, f"WIDTH × HEIGHT = {w} × {h} is not POINTS {n}",
+                            lines_of["POINTS"])
     mode = header["DATA"][0].lower() if header["DATA"] else ""
     try:
-        types = [_PCD_TYPES[(t, int(s))] for t, s in zip(header["TYPE"], header["SIZE"])]
+        types = [_PCD_TYPES[(t, sz)] for t, sz in zip(header["TYPE"], sizes)]
     except KeyError as e:
         raise DataError(path, f"unsupported PCD TYPE/SIZE {e}") from None
     if mode == "ascii":
-        tokens = raw[pos:].split()
+        rows = [ln for ln in raw[pos:].split(b"\n") if ln.strip()]
         width = sum(counts)
-        if len(tokens) < n * width:
-            raise DataError(path, f"truncated: {n} points × {width} values announced, "
-                                  f"{len(tokens)} values found")
+        if len(rows) != n:
+            raise DataError(path, f"POINTS says {n}, the data has {len(rows)} rows"
+                                  + (" (truncated?)" if len(rows) < n else ""))
         try:
-            table = np.array(tokens[:n * width], np.float64).reshape(n, width)
-        except ValueError as e:
-            raise DataError(path, f"non-numeric value in data ({e})") from None
+            table = np.array(b" ".join(rows).split(), np.float64)
+        except ValueError:
+            bad = next(k for k, r in enumerate(rows) if not _numbers(r))
+            raise DataError(path, f"non-numeric value in row {rows[bad].decode('ascii', 'replace')!r}",
+                            line_no + 1 + bad) from None
+        if table.size != n * width:
+            bad = next((k for k, r in enumerate(rows) if len(r.split()) != width), 0)
+            raise DataError(path, f"expected {width} values per row, got "
+                                  f"{len(rows[bad].split())}", line_no + 1 + bad)
+        table = table.reshape(n, width)
         cols, start = {}, 0
         for name, c in zip(fields, counts):
             cols[name] = table[:, start] if c == 1 else table[:, start:start + c]
@@ -348,9 +406,10 @@ def read_pcd(path) -> Cloud:
     elif mode == "binary":
         dtype = np.dtype([(name, "<" + t, (c,)) if c > 1 else (name, "<" + t)
                           for name, t, c in zip(fields, types, counts)])
-        if len(raw) - pos < n * dtype.itemsize:
-            raise DataError(path, f"truncated: {n} points need {n * dtype.itemsize} bytes, "
-                                  f"{len(raw) - pos} found")
+        if len(raw) - pos != n * dtype.itemsize:
+            raise DataError(path, f"POINTS {n} × {dtype.itemsize} bytes = {n * dtype.itemsize} "
+                                  f"bytes of data announced, {len(raw) - pos} found"
+                            + (" (truncated?)" if len(raw) - pos < n * dtype.itemsize else ""))
         arr = np.frombuffer(raw, dtype, n, pos)
         cols = {name: arr[name] for name in fields}
     elif mode == "binary_compressed":
@@ -369,6 +428,14 @@ def read_pcd(path) -> Cloud:
             if np.asarray(cols[key]).dtype.kind == "f" else np.asarray(cols[key], np.uint32)
         colors = np.stack([(packed >> 16) & 255, (packed >> 8) & 255, packed & 255], 1) / 255.0
     return _finite_cloud(path, points, normals, colors)
+
+
+def _numbers(row: bytes) -> bool:
+    try:
+        [float(t) for t in row.split()]
+        return True
+    except ValueError:
+        return False
 
 
 def _read_with_open3d(path) -> Cloud:

@@ -33,6 +33,8 @@ def read_stanford_conf(path):
             if len(tok) != 9:
                 raise DataError(path, "bmesh line must be 'bmesh FILE tx ty tz qx qy qz qw'", no)
             v = parse_numbers(path, " ".join(tok[2:]), no, 7)
+            if not np.linalg.norm(v[3:]) > 1e-8:
+                raise DataError(path, f"the quaternion of {tok[1]} is zero (no rotation)", no)
             t = np.eye(4)
             t[:3, :3] = quaternion_to_matrix(v[3:]).T
             t[:3, 3] = v[:3]

@@ -18,34 +18,56 @@ from sphere_jax.data.readers.io import (Cloud, DataError, atomic_write, check_ex
                                         parse_numbers, read_points)
 
 
+# |RᵀR − I| allowed in a gt.log: the 3DMatch release's own matrices reach 5.1e-4
+# (redkitchen, 3DLoMatch); a shear or scale error is far larger.
+RIGID_TOL = 1e-3
+
+
 def _read_blocks(path, rows_per_block):
-    """Blocks of one ``i j n`` line followed by ``rows_per_block`` matrix rows."""
+    """Blocks of one ``i j n`` line (integers) followed by ``rows_per_block`` matrix rows;
+    a pair given twice is an error."""
     check_exists(path)
     with open(path, "r", encoding="ascii", errors="replace") as f:
         lines = [(i + 1, ln) for i, ln in enumerate(f) if ln.strip()]
     if len(lines) % (rows_per_block + 1):
         raise DataError(path, f"{len(lines)} non-empty lines is not a whole number of "
                               f"{rows_per_block + 1}-line blocks (truncated?)")
-    out, n_total = {}, None
+    out, n_total, where = {}, None, {}
     for b in range(0, len(lines), rows_per_block + 1):
         no, head = lines[b]
         ids = parse_numbers(path, head, no)
         if len(ids) < 2:
             raise DataError(path, f"block header must be 'i j n', got {head.strip()!r}", no)
+        if any(v != int(v) or v < 0 for v in ids[:3]):
+            raise DataError(path, f"block header 'i j n' must hold non-negative integers, got "
+                                  f"{head.strip()!r}", no)
         i, j = int(ids[0]), int(ids[1])
+        if (i, j) in out:
+            raise DataError(path, f"pair ({i}, {j}) given twice (first at line {where[i, j]})",
+                            no)
         if len(ids) > 2:
             n_total = int(ids[2])
         rows = [parse_numbers(path, ln, n) for n, ln in lines[b + 1:b + 1 + rows_per_block]]
         width = len(rows[0])
         if any(len(r) != width for r in rows) or width != rows_per_block:
             raise DataError(path, f"matrix rows must have {rows_per_block} numbers", no + 1)
-        out[(i, j)] = np.array(rows)
-    return out, n_total
+        out[(i, j)], where[(i, j)] = np.array(rows), no
+    return out, n_total, where
 
 
 def read_gt_log(path):
-    """``{(i, j): T [4, 4]}`` with ``p_i = T p_j``, and the fragment count of the header."""
-    return _read_blocks(path, 4)
+    """``{(i, j): T [4, 4]}`` with ``p_i = T p_j``, and the fragment count of the header. Each
+    T must be rigid: RᵀR = I within :data:`RIGID_TOL`, det R positive, last row 0 0 0 1."""
+    out, n_total, where = _read_blocks(path, 4)
+    for pair, t in out.items():
+        r = t[:3, :3]
+        err = np.abs(r.T @ r - np.eye(3)).max()
+        if err > RIGID_TOL or np.linalg.det(r) <= 0 or \
+                np.abs(t[3] - [0, 0, 0, 1]).max() > 1e-6:
+            raise DataError(path, f"pair {pair}: the matrix is not a rigid transform "
+                                  f"(|RᵀR − I| = {err:.2g}, det R = {np.linalg.det(r):.4g}, "
+                                  f"last row {t[3].tolist()})", where[pair] + 1)
+    return out, n_total
 
 
 def read_gt_info(path):

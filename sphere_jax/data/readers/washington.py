@@ -17,6 +17,7 @@ import re
 
 import numpy as np
 
+from sphere_jax import checks
 from sphere_jax.data.readers import rgbd
 from sphere_jax.data.readers.io import DataError
 
@@ -72,7 +73,7 @@ def read_dataset(root, categories=None) -> list[Sample]:
     """Every cropped frame under ``root`` (sorted), optionally only some categories."""
     root = str(root)
     if not os.path.isdir(root):
-        raise FileNotFoundError(f"Washington RGB-D root {root!r} is not a folder")
+        raise checks.MissingError(f"Washington RGB-D root {root!r} is not a folder")
     k_file = os.path.join(root, "camera-intrinsics.txt")
     k = rgbd.read_intrinsics(k_file) if os.path.isfile(k_file) else KINECT
     out = []
@@ -86,5 +87,5 @@ def read_dataset(root, categories=None) -> list[Sample]:
         out.append(Sample(category, f"{m.group(1)}_{m.group(2)}", int(m.group(3)),
                           int(m.group(4)), path[:-len("_crop.png")], k))
     if not out:
-        raise FileNotFoundError(f"no <category>/<instance>/*_crop.png frames under {root!r}")
+        raise checks.MissingError(f"no <category>/<instance>/*_crop.png frames under {root!r}")
     return out

@@ -1,0 +1,107 @@
+"""What the absl mains share: config names, and bad input as one line on stderr.
+
+A bad flag, an unknown config, an unknown config field or a value the run cannot use is one
+line (``train: error: ...``) and exit status 2, before any work starts; another refusal of
+the project's (:class:`sphere_jax.SphereJaxError`: a corrupt file, a non-finite loss) is one
+line and status 1. Anything else is a bug and keeps its traceback.
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import sys
+
+from absl import app, flags
+
+from configs import resolve_config_arg
+from sphere_jax import checks
+
+USAGE = 2
+
+
+def fail(message, status=USAGE):
+    prog = os.path.splitext(os.path.basename(sys.argv[0]))[0]
+    prog = {"__main__": "experiments"}.get(prog, prog)
+    first = str(message).strip().splitlines()
+    print(f"{prog}: error: {' '.join(line.strip() for line in first)}", file=sys.stderr)
+    sys.exit(status)
+
+
+def run(main):
+    """``app.run(main)`` with config names resolved and errors as one line."""
+    try:
+        sys.argv = resolve_config_arg(sys.argv)
+        specs = [a.split("=", 1)[1] for a in sys.argv if a.startswith("--config=")]
+        if specs:
+            spec = specs[-1]                         # absl keeps the last
+            load_config(spec, strict=True)       # a bad size: our message, not absl's dump
+    except checks.SphereJaxError as e:
+        fail(e)
+    app.run(_guarded(main), flags_parser=_parse)
+
+
+def _guarded(main):
+    def guarded(argv):
+        try:
+            return main(argv)
+        except app.UsageError as e:
+            fail(e)
+        except (checks.ConfigError, checks.InputError) as e:
+            fail(e)
+        except checks.SphereJaxError as e:
+            fail(e, 1)
+    return guarded
+
+
+def _parse(argv):
+    try:
+        return flags.FLAGS(argv)
+    except Exception as e:                   # absl's flags.Error or ml_collections' errors
+        fail(explain_override(argv) or _flag_message(e))
+
+
+def _flag_message(error):
+    text = str(error).strip().splitlines()
+    lines = [ln.strip() for ln in text if ln.strip() and not ln.startswith("  File")]
+    return lines[0] if lines else type(error).__name__
+
+
+def explain_override(argv):
+    """For a ``--config.a.b=v`` naming a field the config lacks: the message listing the
+    fields of the deepest section that exists (None when every override names a field)."""
+    specs = [a.split("=", 1)[1] for a in argv if a.startswith("--config=")]
+    config = load_config(specs[-1]) if specs else None
+    if config is None:
+        return None
+    for a in argv:
+        m = re.match(r"--config\.([A-Za-z0-9_.]+)(=|$)", a)
+        if not m:
+            continue
+        node, path = config, "config"
+        for part in m.group(1).split("."):
+            if not hasattr(node, "keys") or part not in node:
+                fields = ", ".join(sorted(node.keys())) if hasattr(node, "keys") else "none"
+                return (f"unknown field {path}.{part} in --config.{m.group(1)}; the fields of "
+                        f"{path} are: {fields}")
+            node, path = node[part], f"{path}.{part}"
+    return None
+
+
+def load_config(spec, strict=False):
+    """The config of ``--config=PATH[:ARG]``; None when it does not load (absl then says
+    why), except that ``strict`` lets the project's own errors through."""
+    path, _, arg = spec.partition(":")
+    try:
+        module_spec = importlib.util.spec_from_file_location("_config", path)
+        module = importlib.util.module_from_spec(module_spec)
+        module_spec.loader.exec_module(module)
+        return module.get_config(arg or None)
+    except checks.SphereJaxError:
+        if strict:
+            raise
+        return None
+    except Exception:
+        return None
+
+
