@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from sphere_jax import api, training
+from experiments import cli
+from sphere_jax import api, checks, training
 
 
 def main(argv=None):
@@ -24,8 +25,10 @@ def main(argv=None):
     try:
         path, last = training.adapt(api.load_bundle(args.bundle), args.data, args.steps,
                                     args.workdir, args.learning_rate)
-    except ValueError as e:
-        raise SystemExit(str(e)) from None
+    except (checks.ConfigError, checks.InputError) as e:
+        cli.fail(e)
+    except checks.SphereJaxError as e:
+        cli.fail(e, 1)
     print(f"adapted bundle in {path}: " + ", ".join(
         f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
 

@@ -209,8 +209,8 @@ class SupportStream:
     def scatter(self, values, row_shape, on_invalid):
         """The ``n`` computed rows back at their keypoints, NaN at the invalid ones."""
         values = np.asarray(values, np.float32)
-        if values.shape[0] == 0:
-            values = values.reshape(0, *(row_shape or (0,)))
+        if values.ndim == 1 and row_shape is not None:        # no row computed
+            values = values.reshape(0, *row_shape)
         out = np.full((self.k, *values.shape[1:]), np.nan, np.float32)
         out[self.rows] = values
         return out if on_invalid == "raise" else (out, self.valid.copy())

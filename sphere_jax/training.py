@@ -386,8 +386,8 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
         able = [k for k, s in models.SPECS.items() if s.orient is not None]
         raise ValueError(f"test-time adaptation is for {' and '.join(able)} bundles, not "
                          f"{trained.kind!r}")
-    if steps < 1:
-        raise ValueError(f"steps must be >= 1, got {steps}")
+    steps = checks.positive(steps, "steps", integer=True)
+    learning_rate = checks.positive(learning_rate, "learning_rate")
     config = ml_collections.ConfigDict(trained.config.to_dict())
     config.data.root = str(data_root)
     config.data.root_weights = ""          # the training roots' shares mean nothing here

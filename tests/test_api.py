@@ -1,5 +1,7 @@
 """The inference API: bundles orient and describe in chunks, concurrently, with clear errors
 (model equivariance is tested per model in tests/models/)."""
+import json
+
 import jax
 import numpy as np
 import pytest
@@ -56,3 +58,126 @@ def test_run_chunked_order_padding_and_workers():
         api.run_chunked(fn, x, 4, workers=0)
     with pytest.raises(ValueError, match="chunk must be a positive integer; got 0"):
         api.run_chunked(fn, x, 0)
+
+
+@pytest.fixture(scope="module")
+def sound_bundle(tmp_path_factory):
+    """A tiny untrained SOUND bundle on disk: it orients and describes (and takes no frames)."""
+    root = tmp_path_factory.mktemp("sound_bundle")
+    config = sound.get_config("tiny")
+    model = models.build(config)
+    x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
+    variables = model.init(jax.random.PRNGKey(0), x * 0.3)
+    training.save_bundle(str(root), config, {"params": variables["params"],
+                                             "batch_stats": variables["batch_stats"]})
+    return root / "bundle"
+
+
+CLOUD = np.random.default_rng(1).uniform(-1, 1, (3000, 3)).astype(np.float32)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(keypoints=np.zeros(3000, bool)), "boolean mask"),
+    (dict(keypoints=np.array([1.0, 2.0])), r"integer indices \[K\] into points or float "
+                                           r"coordinates \[K, 3\]"),
+    (dict(keypoints=CLOUD[0]), r"shape \(3,\)"),
+    (dict(keypoints=CLOUD[:4, :2]), r"shape \(4, 2\)"),
+    (dict(radius=0), "radius must be a positive finite number; got 0"),
+    (dict(radius=-1.0), "got -1.0"),
+    (dict(chunk=2.5), "chunk must be a positive integer; got 2.5"),
+    (dict(workers=0), "workers must be a positive integer; got 0"),
+    (dict(points=np.zeros((0, 3))), "points must be a non-empty cloud"),
+    (dict(points=np.array([[np.nan, 0, 0]] + [[0, 0, 0]] * 9)), "non-finite point"),
+    (dict(points=np.zeros(30)), r"points must be a float array \[N, 3\]"),
+    (dict(on_invalid="skip"), "on_invalid must be one of 'raise', 'mask'; got 'skip'"),
+])
+def test_api_refuses_bad_arguments_before_any_work(sound_bundle, kwargs, message):
+    args = dict(points=CLOUD, keypoints=np.arange(4))
+    args.update(kwargs)
+    for call in (sphere_jax.orient, sphere_jax.describe):
+        with pytest.raises(sphere_jax.SphereJaxError, match=message):
+            call(str(sound_bundle), **args)
+
+
+def test_too_small_supports_are_reported_never_described(sound_bundle):
+    bundle = api.load_bundle(sound_bundle)
+    lonely = np.concatenate([CLOUD, [[5, 5, 5], [5.01, 5, 5]]]).astype(np.float32)
+    kp = np.array([0, 3000, 1])                 # 3000 has one neighbour: 1024 copies of it
+    with pytest.raises(sphere_jax.SphereJaxError, match=r"1 of 3 with fewer \(the first, "
+                                                        r"keypoint 1, has 1\)"):
+        bundle.orient(lonely, kp, radius=0.3)
+    frames, valid = bundle.orient(lonely, kp, radius=0.3, on_invalid="mask")
+    assert valid.tolist() == [True, False, True] and np.isnan(frames[1]).all()
+    ok = bundle.orient(lonely, kp[valid], radius=0.3)
+    np.testing.assert_allclose(frames[valid], ok, atol=1e-6)     # the same stream of patches
+    desc, valid = bundle.describe(lonely, kp[1:2], radius=0.3, on_invalid="mask")
+    assert desc.shape == (1, 512) and not valid[0]               # the width even when none is
+
+
+def test_frames_must_be_rotations_and_only_where_used(sound_bundle):
+    from configs import lead as lead_config
+    config = lead_config.get_config("tiny")
+    model = models.build(config)
+    x = np.zeros((1, config.data.n_points, 3), np.float32)
+    lead = api.Bundle(model, model.init(jax.random.PRNGKey(0), x), config)
+    for frames, message in [(np.zeros((4, 3, 3)), "not.*det = 0"),
+                            (np.full((4, 3, 3), np.nan), "non-finite"),
+                            (np.eye(3), r"rotations \[4, 3, 3\]")]:
+        with pytest.raises(sphere_jax.SphereJaxError, match="frames must be " if
+                           frames.ndim == 2 else message):
+            lead.describe(CLOUD, np.arange(4), radius=0.3, frames=frames)
+    with pytest.raises(sphere_jax.SphereJaxError, match="frames must be None for a sound"):
+        api.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=np.eye(3)[None])
+
+
+def test_coordinate_keypoints_are_queried_not_added(sound_bundle):
+    bundle = api.load_bundle(sound_bundle)
+    far = np.array([[3.0, 3.0, 3.0], [3.01, 3.0, 3.0]], np.float32)
+    cloud = np.concatenate([CLOUD, far[:1] + [0.0, 0.05, 0.0]] * 1).astype(np.float32)
+    # Neither coordinate is a support point of the other: each sees the one cloud point only.
+    stream = bundle.supports(cloud, far, radius=0.3)
+    assert stream.counts.tolist() == [1, 1]
+    p = bundle.patches(np.concatenate([cloud] + [cloud[-1:]] * 20), far, radius=0.3)
+    np.testing.assert_allclose(p[0], np.broadcast_to([0.0, 0.05 / 0.3, 0.0], p[0].shape),
+                               atol=1e-6)
+
+
+def test_corrupt_or_mismatched_bundles_name_the_bundle(sound_bundle, tmp_path):
+    import shutil
+    bad = tmp_path / "bundle"
+    shutil.copytree(sound_bundle, bad)
+    config = bad / "config.json"
+    text = config.read_text()
+    edited = json.loads(text)
+    edited["model_kwargs"]["s2_features"] += 1
+    config.write_text(json.dumps(edited))
+    with pytest.raises(sphere_jax.SphereJaxError, match=rf"bundle {bad}: parameter .* has "
+                                                        r"shape .*\(config and weights do not match\)"):
+        api.load_bundle(bad)
+    config.write_text(text[:50])
+    with pytest.raises(sphere_jax.SphereJaxError, match="config.json is unreadable"):
+        api.load_bundle(bad)
+    config.write_text(text)
+    data = max((p for p in (bad / "variables").rglob("*") if p.is_file()),
+               key=lambda p: p.stat().st_size)
+    data.write_bytes(data.read_bytes()[:64])
+    with pytest.raises(sphere_jax.SphereJaxError, match=rf"bundle {bad}: the weights in "
+                                                        r"variables/ cannot be restored"):
+        api.load_bundle(bad)
+
+
+def test_support_memory_does_not_grow_with_the_keypoints(sound_bundle):
+    """Peak Python allocations (numpy's buffers) of orienting K keypoints: chunks stream, so
+    8× the keypoints may not cost much more than the output itself."""
+    import tracemalloc
+    bundle = api.load_bundle(sound_bundle)
+    dense = np.random.default_rng(2).uniform(-1, 1, (60_000, 3)).astype(np.float32)
+    bundle.orient(dense, np.arange(8), radius=0.3, chunk=64, workers=1)      # compile
+    peaks = {}
+    for k in (256, 2048):
+        tracemalloc.start()
+        bundle.orient(dense, np.arange(k), radius=0.3, chunk=64, workers=1)
+        peaks[k] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    # Materialised, 2048 supports of ~680 neighbours and their patches took ~8× the 256's.
+    assert peaks[2048] < 2.0 * peaks[256], peaks

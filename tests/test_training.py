@@ -154,3 +154,54 @@ def test_fused_training_equals_layer_by_layer(name, size):
     assert abs(float(loss) - float(ref_loss)) <= 1e-5 * abs(float(ref_loss))
     assert _tree_rel_err(grads, ref_grads) < max(1e-5, 2 * sensitivity)
     assert _tree_rel_err(stats, ref_stats) < 1e-5
+
+
+def test_first_non_finite_loss_stops_keeping_the_last_good_checkpoint(small_root, tmp_path,
+                                                                       monkeypatch):
+    workdir = str(tmp_path / "run")
+    training.train_and_evaluate(tiny("lead", small_root, steps=2), workdir, progress=False)
+    stamp = os.stat(os.path.join(workdir, "bundle", "config.json")).st_mtime_ns
+    good = training.loss_fn
+
+    def nan_loss(*args, **kwargs):
+        loss, (metrics, stats) = good(*args, **kwargs)
+        return loss * np.nan, (dict(metrics, loss=loss * np.nan), stats)
+
+    monkeypatch.setattr(training, "loss_fn", nan_loss)
+    with pytest.raises(training.TrainingError, match="step 3: the loss is nan .* The "
+                                                     "checkpoint of step 2 is kept; no bundle"):
+        training.train_and_evaluate(tiny("lead", small_root, steps=4), workdir, progress=False)
+    assert sorted(os.listdir(os.path.join(workdir, "checkpoints"))) == ["2"]
+    assert os.stat(os.path.join(workdir, "bundle", "config.json")).st_mtime_ns == stamp
+
+
+def test_unrestorable_newest_checkpoint_falls_back_to_the_one_before(small_root, tmp_path):
+    workdir = str(tmp_path / "run")
+    training.train_and_evaluate(tiny("lead", small_root, steps=4), workdir, progress=False)
+    newest = os.path.join(workdir, "checkpoints", "4")
+    data = max((os.path.join(d, f) for d, _, fs in os.walk(newest) for f in fs),
+               key=os.path.getsize)
+    with open(data, "r+b") as f:
+        f.truncate(100)
+    with pytest.warns(UserWarning, match="checkpoint of step 4 .* cannot be restored"):
+        _, last = training.train_and_evaluate(tiny("lead", small_root, steps=6), workdir,
+                                              progress=False)
+    assert last["step"] == 6 and np.isfinite(last["loss"])
+    assert sorted(os.listdir(os.path.join(workdir, "checkpoints")), key=int)[-1] == "6"
+    assert len(os.listdir(os.path.join(workdir, "unrestorable"))) == 1      # kept, aside
+    steps = [json.loads(ln)["step"] for ln in open(os.path.join(workdir, "metrics.jsonl"))]
+    assert steps == [1, 2, 3, 4, 5, 6]                 # 3 and 4 redone, logged once
+
+
+def test_workdir_of_another_model_is_refused(small_root, tmp_path):
+    workdir = str(tmp_path / "run")
+    training.train_and_evaluate(tiny("lead", small_root, steps=2), workdir, progress=False)
+    with pytest.raises(training.checks.ConfigError, match="holds the checkpoints of model "
+                                                          "lead .* this config trains compass"):
+        training.train_and_evaluate(tiny("compass", small_root, steps=2), workdir,
+                                    progress=False)
+    os.remove(os.path.join(workdir, training.WORKDIR_CONFIG))    # a run from before the record
+    with pytest.raises(training.checks.ConfigError, match="checkpoints of another model than "
+                                                          "this config's compass"):
+        training.train_and_evaluate(tiny("compass", small_root, steps=2), workdir,
+                                    progress=False)

@@ -25,8 +25,8 @@ def machine_line():
 
 
 def format_table(records):
-    cols = list(records[0])
-    rows = [[str(r[c]) for c in cols] for r in records]
+    cols = list(dict.fromkeys(c for r in records for c in r))     # suites mix record kinds
+    rows = [[str(r.get(c, "")) for c in cols] for r in records]
     widths = [max(len(c), *(len(row[i]) for row in rows)) for i, c in enumerate(cols)]
     line = lambda cells: "| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths)) + " |"
     return "\n".join([line(cols), "|" + "|".join("-" * (w + 2) for w in widths) + "|"]

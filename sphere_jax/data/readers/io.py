@@ -234,7 +234,7 @@ def _check_endianness(path, vertex, fmt):
     xyz = [vertex[c] for c in "xyz" if c in vertex]
     if not xyz or xyz[0].dtype.kind != "f" or len(xyz[0]) == 0:
         return
-    a = np.stack(xyz, 1)
+    a = np.stack(xyz, 1).astype(xyz[0].dtype.newbyteorder("="))      # values, native order
 
     def sane(v):                 # over the finite values: organised scans mark holes NaN
         with np.errstate(all="ignore"):
@@ -242,7 +242,7 @@ def _check_endianness(path, vertex, fmt):
             return float(np.mean((mag == 0) | ((mag > 1e-20) & (mag < 1e9)))) if mag.size else 0.0
 
     if sane(a) < 0.9:
-        other = sane(a.byteswap().view(a.dtype.newbyteorder()))
+        other = sane(a.byteswap())                   # the bytes read in the other order
         if other > 0.99:
             raise DataError(path, f"the header says {fmt}, but the coordinates read that way "
                                   f"are absurd (|x| up to {np.nanmax(np.abs(a)):.3g}) and read "

@@ -75,6 +75,21 @@ def _write(tmp_path, name, data):
     ("e.txt", "\n", "empty"),
     ("z.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
               "property float z\nend_header\nnan 0 0\n", "no finite points"),
+    # Header and body disagree: the rest was silently dropped before.
+    ("u.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+              b"property float y\nproperty float z\nend_header\n" + bytes(48),
+     "24 bytes after the elements the header announces"),
+    ("a.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+              "property float z\nend_header\n0 0 0\n1 1 1\n", r"line 9: 1 row\(s\) after"),
+    ("big.ply", b"ply\nformat binary_big_endian 1.0\nelement vertex 64\nproperty float x\n"
+                b"property float y\nproperty float z\nend_header\n"
+                + np.linspace(-2, 3, 192).astype("<f4").tobytes(), "other byte order"),
+    ("p.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS abc\nDATA ascii\n1 2 3\n",
+     r"line 4: POINTS must be non-negative integers, got 'abc'"),
+    ("v.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 2\nDATA ascii\n1 2 3\n1 x 3\n",
+     r"line 7: non-numeric value"),
+    ("w.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n1 2 3\n4 5 6\n",
+     "POINTS says 1, the data has 2 rows"),
 ])
 def test_corrupt_files_raise_clear_errors(tmp_path, name, data, message):
     path = _write(tmp_path, name, data)

@@ -47,3 +47,24 @@ def test_gt_log_round_trip_and_errors(tmp_path):
         stanford.read_stanford_conf(tmp_path / "bad.conf")
     with pytest.raises(io.DataError, match="no cloud_bin_K.ply"):
         threedmatch.load_fragment_scene(tmp_path)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda ls: ["0.5 1 2"] + ls[1:],
+     "line 1: block header 'i j n' must hold non-negative integers"),
+    (lambda ls: ls[:5] + ls[:5], r"line 6: pair \(0, 1\) given twice \(first at line 1\)"),
+    (lambda ls: ls[:1] + [ls[1].replace("1", "2", 1)] + ls[2:5],
+     r"line 2: pair \(0, 1\): the matrix is not a rigid transform"),
+])
+def test_gt_log_ids_pairs_and_matrices_checked(tmp_path, edit, message):
+    threedmatch.write_gt_log(tmp_path / "gt.log", {(0, 1): np.eye(4)}, 2)
+    lines = (tmp_path / "gt.log").read_text().splitlines()
+    (tmp_path / "bad.log").write_text("\n".join(edit(lines)) + "\n")
+    with pytest.raises(io.DataError, match=message):
+        threedmatch.read_gt_log(tmp_path / "bad.log")
+
+
+def test_conf_with_a_zero_quaternion_is_refused(tmp_path):
+    (tmp_path / "z.conf").write_text("camera 0 0 0 0 0 0 1\nbmesh a.ply 0 0 0 0 0 0 0\n")
+    with pytest.raises(io.DataError, match="line 2: the quaternion of a.ply is zero"):
+        stanford.read_stanford_conf(tmp_path / "z.conf")

@@ -1,0 +1,37 @@
+"""The command lines: a bad flag, config, field or value is one line on stderr, exit status 2,
+before any work (no traceback, no workdir written)."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=300)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["experiments.train", "--config=lead:tiny", "--config.train.stepz=5"],
+     "train: error: unknown field config.train.stepz in --config.train.stepz; the fields of "
+     "config.train are: batch_size, checkpoint_every"),
+    (["experiments.train", "--config=leed"], "train: error: --config must be one of ablation, "),
+    (["experiments.train", "--config=lead:huge"],
+     "must be one of ('paper', 'mid', 'cpu', 'tiny'); got 'huge'"),
+    (["experiments.train", "--config=lead:tiny", "--config.train.steps=-5"],
+     "train: error: config.train.steps must be an integer >= 1; got -5"),
+    (["experiments.train", "--config=lead:tiny", "--config.train.learning_rate=nan"],
+     "config.train.learning_rate must be a finite number > 0; got nan"),
+    (["experiments.evaluate", "--config=eval_registration", "--config.data.max_pairs=-1"],
+     "evaluate: error: config.data.max_pairs must be an integer >= 0 (0: every pair); got -1"),
+    (["experiments.bench", "--suite=nope"], "bench: error: flag --suite=nope: value should be"),
+])
+def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
+    out = run(*args, f"--workdir={tmp_path / 'w'}" if "bench" not in args[0] else "--json")
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], out.stderr
+    assert not (tmp_path / "w").exists()
