@@ -1,7 +1,7 @@
 """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND bundle, self-supervised,
 on the scans it will be evaluated on.
 
-    python -m experiments.adapt --bundle=checkpoints/compass_cpu/bundle --data=SCANS \\
+    python -m experiments.adapt --bundle=compass --data=SCANS \\
         --steps=200 --workdir=runs/compass_adapted
 
 The adapted bundle is written to ``WORKDIR/bundle``; re-running resumes like training.

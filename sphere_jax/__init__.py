@@ -20,7 +20,7 @@ synthetic data) and ``eval`` (benchmarks).
 """
 from __future__ import annotations
 
-__all__ = ["load_bundle", "orient", "describe", "SphereJaxError"]
+__all__ = ["load_bundle", "orient", "describe", "register", "SphereJaxError"]
 
 from sphere_jax.checks import SphereJaxError
 
@@ -46,7 +46,8 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
     Args:
       bundle: a :class:`sphere_jax.api.Bundle`, the path of one (loaded once, then cached) or
         a shipped model kind (``"compass"``, ``"sound"``).
-      points: ``[N, 3]`` float cloud, metres (e.g. voxelised at 2 cm for 3DMatch).
+      points: ``[N, 3]`` float cloud, metres (e.g. voxelised at 2 cm for 3DMatch), or an open3d
+        point cloud (``open3d.geometry.PointCloud`` or ``open3d.t.geometry.PointCloud``).
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's training radius, 0.3 m).
       chunk: patches per jitted, vmapped call (default: the bundle's ``infer_chunk``); memory
@@ -69,7 +70,7 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
 
 
 def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
-             workers=None, on_invalid="raise"):
+             workers=None, on_invalid="raise", as_open3d=False):
     """Rotation-invariant local descriptors from a LEAD, LEAD-PN or SOUND bundle.
 
     LEAD's SO(3) descriptor is turned to canonical pose by ``frames`` (``[K, 3, 3]``, e.g.
@@ -79,11 +80,13 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
     Args:
       bundle: a :class:`sphere_jax.api.Bundle`, the path of one, or a shipped model kind
         (``"lead"``, ``"lead_pn"``, ``"sound"``).
-      points: ``[N, 3]`` float cloud, metres.
+      points: ``[N, 3]`` float cloud, metres, or an open3d point cloud.
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's).
       chunk, seed, workers, on_invalid: as in :func:`orient`.
       frames: optional LRFs for LEAD (rotations: orthonormal, det +1, within 1e-3).
+      as_open3d: return an ``open3d.pipelines.registration.Feature`` (``data [D, K]``), which
+        open3d's ``registration_ransac_based_on_feature_matching`` and FGR take directly.
 
     Returns:
       ``[K, D]`` float32 descriptors (D = 512 for the shipped bundles); compare them with the
@@ -91,4 +94,23 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
       :func:`sphere_jax.eval.registration.mutual_matches`).
     """
     return _bundle(bundle).describe(points, keypoints, radius=radius, chunk=chunk, seed=seed,
-                                    frames=frames, workers=workers, on_invalid=on_invalid)
+                                    frames=frames, workers=workers, on_invalid=on_invalid,
+                                    as_open3d=as_open3d)
+
+
+def register(source, target, method="lead_pn", voxel="auto", radius="auto", n_keypoints=5000,
+             seed=0, bundle=None, icp=True):
+    """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d clouds or file paths):
+    voxel grid → keypoints → descriptors (``method``: the shipped LEAD-PN by default, or
+    ``lead``, ``lead_compass``, ``sound``, ``fpfh``, ``shot``, ``spin``, ``usc``) → mutual
+    matches → RANSAC → point-to-plane ICP. ``voxel`` and ``radius`` default to a scale chosen
+    from the clouds (:func:`sphere_jax.align.auto_scale`).
+
+    Returns:
+      :class:`sphere_jax.align.Registration`: ``transform`` (4×4, ``p_target = T p_source``),
+      ``inliers``, ``matches``, ``fitness``, ``rmse``, the ``voxel`` and ``radius`` used and the
+      ``seconds`` of each stage; ``.summary()`` prints them.
+    """
+    from sphere_jax import align
+    return align.register(source, target, method, voxel, radius, n_keypoints, seed, bundle,
+                          icp)

@@ -123,11 +123,21 @@ class Bundle:
         return self._run(self._orient_fn, p.astype(np.float32), chunk, workers)
 
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
-                 workers=None, on_invalid="raise"):
+                 workers=None, on_invalid="raise", as_open3d=False):
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
         ``frames`` (``[K, 3, 3]`` rotations, e.g. from a Compass bundle) or, by default,
         FLARE; LEAD-PN: the code of the FLARE-oriented patch; SOUND: self-oriented.
-        ``on_invalid`` as in :meth:`orient`."""
+        ``on_invalid`` as in :meth:`orient`; ``as_open3d``: an
+        ``open3d.pipelines.registration.Feature`` instead (open3d's RANSAC and FGR take it)."""
+        out = self._describe(points, keypoints, radius, chunk, seed, frames, workers,
+                             on_invalid)
+        if not as_open3d:
+            return out
+        if on_invalid == "mask":
+            return open3d_feature(out[0]), out[1]
+        return open3d_feature(out)
+
+    def _describe(self, points, keypoints, radius, chunk, seed, frames, workers, on_invalid):
         self._can("describe")
         checks.choice(on_invalid, "on_invalid", ON_INVALID)
         stream = self.supports(points, keypoints, radius, seed)
@@ -283,6 +293,15 @@ def extract_unit_patches(points, keypoints, radius, n_points, seed=0):
                            checks.positive(n_points, "n_points", integer=True), seed, 1)
     stream.check("raise")
     return stream.make(0, stream.n)[0]
+
+
+def open3d_feature(desc_KxD):
+    """Descriptors as the ``open3d.pipelines.registration.Feature`` (``data`` is ``[D, K]``
+    float64) that open3d's feature-matching RANSAC and FGR take."""
+    import open3d as o3d
+    feature = o3d.pipelines.registration.Feature()
+    feature.data = np.ascontiguousarray(np.asarray(desc_KxD, np.float64).T)
+    return feature
 
 
 def bundle_path(name_or_path) -> str:

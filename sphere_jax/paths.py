@@ -4,8 +4,8 @@
   beside the checkout (:func:`real_data_root`, :func:`real_data`);
 * the **embedded synthetic data** cache: ``$SPHERE_JAX_DATA``, else ``~/.cache/sphere_jax``
   (:func:`cache_root`; what goes in it is :mod:`sphere_jax.data.generators.synthetic`'s);
-* the **shipped bundles**: ``$SPHERE_JAX_CHECKPOINTS``, else the checkout's ``checkpoints/``
-  (:func:`shipped_bundle`).
+* the **shipped bundles**: package data in ``sphere_jax/weights/`` (``$SPHERE_JAX_WEIGHTS``
+  replaces it; :func:`shipped_bundle`).
 """
 from __future__ import annotations
 
@@ -43,9 +43,12 @@ def cache_root():
                           os.path.join(os.path.expanduser("~"), ".cache", "sphere_jax"))
 
 
-def checkpoints_root():
-    return os.path.normpath(os.environ.get("SPHERE_JAX_CHECKPOINTS")
-                            or os.path.join(REPO, "checkpoints"))
+def weights_root():
+    """The shipped bundles: package data (``sphere_jax/weights``), so that any install —
+    editable, ``pip install .``, a wheel — has them; ``$SPHERE_JAX_WEIGHTS`` replaces it."""
+    return os.path.normpath(os.environ.get("SPHERE_JAX_WEIGHTS")
+                            or os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                            "weights"))
 
 
 # The shipped bundle of each model kind: the evaluations' defaults and the examples' bundles.
@@ -54,16 +57,16 @@ SHIPPED = {"compass": "compass_mid", "lead": "lead_mid", "lead_pn": "lead_pn_mid
 
 
 def shipped_bundle(name, required=False):
-    """The folder of shipped bundle ``name`` — a folder of ``checkpoints/`` (``'sound_cpu'``)
+    """The folder of shipped bundle ``name`` — a folder of ``sphere_jax/weights/``
     or a model kind of :data:`SHIPPED` (``'sound'``); ``''`` when it is absent
     (FileNotFoundError instead with ``required``)."""
     name = SHIPPED.get(name, name)
-    path = os.path.join(checkpoints_root(), name, "bundle")
+    path = os.path.join(weights_root(), name, "bundle")
     if os.path.isfile(os.path.join(path, "config.json")):
         return path
     if required:
-        raise checks.MissingError(f"no shipped bundle {name!r} in {checkpoints_root()} (set "
-                                f"SPHERE_JAX_CHECKPOINTS to the repository's checkpoints/)")
+        raise checks.MissingError(f"no shipped bundle {name!r} in {weights_root()} (the "
+                                  f"package's weights; $SPHERE_JAX_WEIGHTS replaces them)")
     return ""
 
 

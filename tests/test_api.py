@@ -181,3 +181,32 @@ def test_support_memory_does_not_grow_with_the_keypoints(sound_bundle):
         tracemalloc.stop()
     # Materialised, 2048 supports of ~680 neighbours and their patches took ~8× the 256's.
     assert peaks[2048] < 2.0 * peaks[256], peaks
+
+
+def test_open3d_clouds_in_and_features_out_for_open3d_ransac():
+    """open3d users pass their clouds and hand our descriptors to open3d's own RANSAC."""
+    import open3d as o3d
+    from sphere_jax.data import demo, patches
+    from sphere_jax.eval import registration
+    (src, dst), t_gt = demo.fragment_pair()
+    reg = o3d.pipelines.registration
+    clouds, features = [], []
+    for k, pts in enumerate((src, dst)):
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts.astype(np.float64)))
+        kp = patches.random_keypoints(pts, 1500, np.random.default_rng(k))
+        feature = sphere_jax.describe("lead_pn", pcd, kp, as_open3d=True)
+        assert feature.dimension() == 512 and feature.num() == len(kp)
+        if k == 0:                         # the same numbers from numpy and a tensor cloud
+            tensor = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32)))
+            np.testing.assert_allclose(sphere_jax.describe("lead_pn", tensor, kp),
+                                       feature.data.T, atol=1e-5)
+        clouds.append(pcd.select_by_index(kp.tolist()))
+        features.append(feature)
+    o3d.utility.random.seed(0)
+    out = reg.registration_ransac_based_on_feature_matching(
+        clouds[0], clouds[1], features[0], features[1], True, 0.05,
+        reg.TransformationEstimationPointToPoint(False), 3,
+        [reg.CorrespondenceCheckerBasedOnDistance(0.05)],
+        reg.RANSACConvergenceCriteria(100_000, 0.999))
+    rre, rte = registration.rre_rte(np.asarray(out.transformation), t_gt)
+    assert rre < 10 and rte < 0.3, (rre, rte)

@@ -6,7 +6,8 @@ else a synthetic fragment:
 - memory: the supports of K keypoints on the **full-resolution** fragment drawn as the
   inference API does (:class:`sphere_jax.api.SupportStream`, chunks of 256 patches of 1024
   points streamed, one prepared ahead) against all at once (what extraction did before),
-  each K in a fresh process, peak RSS from the kernel. ``--keypoints`` sets the largest K.
+  each K in a fresh process, peak RSS from the kernel; and the whole ``describe`` call of the
+  shipped LEAD at the largest K (``--keypoints``).
 """
 from __future__ import annotations
 
@@ -40,9 +41,10 @@ def run(repeats=5, keypoints=5000, **_):
     records = [_timing(repeats)]
     ks = sorted({k for k in (1000, 5000, 20000, 50000) if k < keypoints} | {keypoints})
     ctx = multiprocessing.get_context("spawn")
-    for mode in ("streamed", "all at once"):
+    for mode in ("streamed", "all at once", "LEAD describe"):
         for k in ks:
-            if mode == "all at once" and k > ALL_AT_ONCE_MAX:
+            if mode == "all at once" and k > ALL_AT_ONCE_MAX or \
+                    mode == "LEAD describe" and k != ks[-1]:
                 continue
             with ctx.Pool(1) as pool:
                 rss_mb, seconds, n_points = pool.apply(_memory_child, (k, mode))
@@ -60,7 +62,9 @@ def _memory_child(k, mode):
     rng = np.random.default_rng(0)
     kp = np.sort(rng.choice(len(points), k, replace=k > len(points)))
     t0 = time.perf_counter()
-    if mode == "streamed":
+    if mode == "LEAD describe":                           # the whole API call, shipped LEAD
+        api.load_bundle("lead").describe(points, kp, on_invalid="mask")
+    elif mode == "streamed":
         stream = api.SupportStream(points, kp, RADIUS, N_POINTS, 0, api.MIN_SUPPORT)
         # A stand-in network: the first point of each patch (the supports are what is measured).
         api.stream_chunked(lambda p: p[:, 0], stream.make, stream.n, CHUNK, workers=2)

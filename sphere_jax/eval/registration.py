@@ -2,7 +2,7 @@
 
 For each pair (i, j) with ground truth ``p_i = T p_j``:
 
-* mutual nearest neighbours in descriptor space (KD-trees, never a dense distance matrix);
+* mutual nearest neighbours in descriptor space (blocks of a distance matrix, never all of it);
 * a match is correct if ``‖p_i − T p_j‖ < τ1`` (0.10 m); inlier ratio = correct / matches;
   the pair counts towards feature-match recall if its inlier ratio exceeds ``τ2`` (5 %);
 * RANSAC (open3d) on the matches estimates ``T̂``; ``RRE = arccos((tr(R̂ᵀR) − 1)/2)``,
@@ -20,7 +20,6 @@ import time
 from typing import Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
 from tqdm.auto import tqdm
 
 from sphere_jax.eval import methods as method_lib
@@ -41,10 +40,24 @@ def mutual_matches(desc_a_KxD, desc_b_KxD):
                          f"and {desc_b_KxD.shape}")
     if len(desc_a_KxD) == 0 or len(desc_b_KxD) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    ab = cKDTree(desc_b_KxD).query(desc_a_KxD, k=1, workers=-1)[1]
-    ba = cKDTree(desc_a_KxD).query(desc_b_KxD, k=1, workers=-1)[1]
+    ab = nearest(desc_a_KxD, desc_b_KxD)
+    ba = nearest(desc_b_KxD, desc_a_KxD)
     ia = np.nonzero(ba[ab] == np.arange(len(desc_a_KxD)))[0]
     return ia, ab[ia]
+
+
+def nearest(query_QxD, base_BxD, rows=1024):
+    """Index in ``base`` of each query's nearest neighbour (Euclidean), by blocks of ``rows``
+    queries: ‖q‖² − 2 q·b + ‖b‖² as one float64 matmul per block. A KD-tree degenerates to a
+    slow brute force in hundreds of dimensions (5000 × 5000 at D = 512: 3 s against 0.2 s);
+    the blocks keep memory at ``rows × B``."""
+    q, b = np.asarray(query_QxD, np.float64), np.asarray(base_BxD, np.float64)
+    b_sq = np.einsum("bd,bd->b", b, b)
+    out = np.empty(len(q), np.int64)
+    for s in range(0, len(q), rows):
+        block = q[s:s + rows]
+        out[s:s + rows] = np.argmin(b_sq[None, :] - 2.0 * block @ b.T, axis=1)
+    return out
 
 
 def rre_rte(t_est, t_gt):

@@ -68,9 +68,10 @@ def _finite_cloud(path, points, normals=None, colors=None, faces=None):
 
 
 def read_points(path) -> Cloud:
-    """Read any supported point file by its suffix (.ply, .pcd, .off, .txt)."""
+    """Read any supported point file by its suffix (.ply, .pcd, .off, .txt, .xyz, .npy)."""
     ext = os.path.splitext(str(path))[1].lower()
-    readers = {".ply": read_ply, ".pcd": read_pcd, ".off": read_off, ".txt": read_modelnet_txt}
+    readers = {".ply": read_ply, ".pcd": read_pcd, ".off": read_off, ".txt": read_txt,
+               ".xyz": read_xyz, ".npy": read_npy}
     if ext not in readers:
         raise DataError(path, f"unknown point-cloud suffix {ext!r} (known: {sorted(readers)})")
     return readers[ext](path)
@@ -559,3 +560,45 @@ def read_modelnet_h5(path):
         raise DataError(path, f"'data' must be [B, N, 3] with one label per shape, got "
                               f"{data.shape} and {labels.shape}")
     return data, labels, normals
+
+
+# ----------------------------------------------------------------------------------------------
+# XYZ text and NumPy arrays
+# ----------------------------------------------------------------------------------------------
+
+def read_txt(path) -> Cloud:
+    """A ``.txt`` of comma-separated rows is a ModelNet shape (:func:`read_modelnet_txt`); of
+    space-separated rows, an XYZ file (:func:`read_xyz`)."""
+    check_exists(path)
+    with open(path, "r", encoding="ascii", errors="replace") as f:
+        first = next((ln for ln in f if ln.strip()), "")
+    return read_modelnet_txt(path) if "," in first else read_xyz(path)
+
+
+def read_xyz(path) -> Cloud:
+    """Rows ``x y z [more columns]`` (space or comma separated; ``#`` comments skipped): the
+    first three columns are the points, the next three the normals when there are six."""
+    check_exists(path)
+    with open(path, "r", encoding="ascii", errors="replace") as f:
+        rows = [(no, ln) for no, ln in enumerate(f, 1) if ln.strip() and
+                not ln.lstrip().startswith("#")]
+    if not rows:
+        raise DataError(path, "no rows")
+    width = len(parse_numbers(path, rows[0][1], rows[0][0]))
+    if width < 3:
+        raise DataError(path, f"rows need at least 3 numbers (x y z), got {width}", rows[0][0])
+    table = np.array([parse_numbers(path, ln, no, width) for no, ln in rows], np.float64)
+    return _finite_cloud(path, table[:, :3], table[:, 3:6] if width == 6 else None)
+
+
+def read_npy(path) -> Cloud:
+    """A NumPy ``.npy`` array ``[N, 3]`` (or ``[N, 6]``: points and normals)."""
+    check_exists(path)
+    try:
+        a = np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as e:
+        raise DataError(path, f"not a readable .npy array ({e})") from None
+    if a.ndim != 2 or a.shape[1] not in (3, 6) or a.dtype.kind not in "iuf":
+        raise DataError(path, f"expected a numeric [N, 3] or [N, 6] array, got shape {a.shape} "
+                              f"and dtype {a.dtype}")
+    return _finite_cloud(path, a[:, :3], a[:, 3:] if a.shape[1] == 6 else None)
