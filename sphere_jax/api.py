@@ -25,8 +25,7 @@ from sklearn.neighbors import KDTree
 
 from sphere_jax import bundle as bundle_files
 from sphere_jax import checks
-from sphere_jax import paths
-from sphere_jax import models
+from sphere_jax import models, parallel, paths
 from sphere_jax.data import patches as patch_lib
 from sphere_jax.models import flare
 
@@ -248,6 +247,9 @@ def stream_chunked(fn, make, n, chunk=None, workers=None):
                               integer=True)
     if n == 0:
         return np.zeros((0,))
+    rows_on = chunk_sharding()
+    if rows_on is not None:                  # every device takes an equal block of each chunk
+        chunk = -(-chunk // rows_on.mesh.size) * rows_on.mesh.size
     starts = list(range(0, n, chunk))
 
     def prepare(a):
@@ -259,7 +261,8 @@ def stream_chunked(fn, make, n, chunk=None, workers=None):
         return parts, rows
 
     def compute(parts, rows):
-        return np.asarray(fn(*(jnp.asarray(p) for p in parts)))[:rows]
+        put = jnp.asarray if rows_on is None else lambda p: jax.device_put(p, rows_on)
+        return np.asarray(fn(*(put(p) for p in parts)))[:rows]
 
     out, running = [], collections.deque()
     workers = min(len(starts), workers)
@@ -275,6 +278,19 @@ def stream_chunked(fn, make, n, chunk=None, workers=None):
                 out.append(running.popleft().result())
         out.extend(f.result() for f in running)
     return np.concatenate(out)
+
+
+def chunk_sharding():
+    """With more than one local device (GPUs, TPU cores, or CPU host devices forced by
+    ``XLA_FLAGS``): chunks split on their first axis across all of them, so the jitted
+    network runs on every device at once (one SPMD program, :mod:`sphere_jax.parallel`'s
+    axis); None with one device. Only this process's devices: in a multi-process run each
+    process describes its own scans."""
+    devices = jax.local_devices()
+    if len(devices) < 2:
+        return None
+    return jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), (parallel.AXIS,)),
+                                      jax.sharding.PartitionSpec(parallel.AXIS))
 
 
 def default_workers() -> int:

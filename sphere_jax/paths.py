@@ -70,6 +70,12 @@ def shipped_bundle(name, required=False):
     return ""
 
 
+def relative(path) -> str:
+    """``path`` relative to the checkout's root (``../shared/data``) for what notebooks and
+    messages show: no machine's absolute path."""
+    return os.path.relpath(os.path.abspath(str(path)), REPO)
+
+
 def portable(path):
     """``path`` as a label that means the same on any machine: ``embedded/<rel>`` under the
     synthetic data cache, ``shared/<rel>`` under the real scans, else the absolute path."""

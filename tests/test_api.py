@@ -1,6 +1,7 @@
 """The inference API: bundles orient and describe in chunks, concurrently, with clear errors
 (model equivariance is tested per model in tests/models/)."""
 import json
+import os
 
 import jax
 import numpy as np
@@ -210,3 +211,36 @@ def test_open3d_clouds_in_and_features_out_for_open3d_ransac():
         reg.RANSACConvergenceCriteria(100_000, 0.999))
     rre, rte = registration.rre_rte(np.asarray(out.transformation), t_gt)
     assert rre < 10 and rte < 0.3, (rre, rte)
+
+
+SHARDED_CHILD = """
+import sys, numpy as np, jax
+from sphere_jax import api
+from sphere_jax.data import demo, patches
+assert api.chunk_sharding().mesh.size == jax.local_device_count() == 2
+(src, _), _ = demo.fragment_pair()
+kp = patches.random_keypoints(src, 150, np.random.default_rng(0))
+np.savez(sys.argv[1], compass=api.load_bundle('compass').orient(src, kp, chunk=25),
+         lead=api.load_bundle('lead').describe(src, kp, chunk=25))
+"""
+
+
+def test_chunks_split_over_two_host_devices_give_the_same_results(tmp_path):
+    """With two local devices every chunk is one SPMD program over both (a sharded batch
+    axis); frames and descriptors equal those of one device."""
+    import subprocess
+    import sys
+    from sphere_jax.data import demo, patches
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    out = tmp_path / "two.npz"
+    run = subprocess.run([sys.executable, "-c", SHARDED_CHILD, str(out)], env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    two = np.load(out)
+    assert api.chunk_sharding() is None                       # this process: one device
+    (src, _), _ = demo.fragment_pair()
+    kp = patches.random_keypoints(src, 150, np.random.default_rng(0))
+    np.testing.assert_allclose(two["compass"], api.load_bundle("compass").orient(src, kp),
+                               atol=1e-5)
+    np.testing.assert_allclose(two["lead"], api.load_bundle("lead").describe(src, kp),
+                               atol=1e-5)

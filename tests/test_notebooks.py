@@ -25,6 +25,11 @@ def test_notebook_runs(path, monkeypatch):
     print(f"{os.path.basename(path)}: {elapsed:.0f} s, {images} figure(s)")
     assert images >= 1
     assert elapsed < BUDGET_S
+    # What a notebook shows must mean the same on any machine: no absolute path of this one.
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    shown = [str(o) for c in nb.cells for o in c.get("outputs", [])]
+    for root in (here, os.path.dirname(here), os.path.expanduser("~")):
+        assert not any(root + os.sep in text for text in shown), root
 
 
 def test_there_are_four_notebooks():

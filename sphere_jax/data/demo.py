@@ -11,6 +11,12 @@ from sphere_jax.data.readers import stanford, threedmatch
 real_data_root = paths.real_data_root
 
 
+def real_data_label():
+    """Where the real scans are, relative to the checkout (``../shared/data``), or why none."""
+    root = real_data_root()
+    return paths.relative(root) if root else "not found: the synthetic scans stand in for it"
+
+
 def bundle(name):
     """Path of a shipped bundle, by model kind (``bundle('sound')``) or folder name."""
     return paths.shipped_bundle(name, required=True)

@@ -23,7 +23,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import report
+from sphere_jax.eval import processes, report
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.spherical import so3
 
@@ -174,16 +174,19 @@ def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
 
 def run(config, workdir, progress=True):
     """Descriptor benchmark: returns ``(rows, markdown)``; writes results.{csv,md} and
-    fmr_vs_tau2.png in ``workdir``."""
+    fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the
+    processes and process 0 writes the tables (:mod:`processes`)."""
     bundles = method_lib.bundle_paths(config)
     names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
     describers = {m: method_lib.descriptor(m, config.data.radius, bundles, config.fpfh_radius,
                                            config.chunk) for m in names}
-    results = []
-    for s in scene_lib.pair_sets(config):
-        results += evaluate_scene(
-            s, describers, scene_lib.prepare_kwargs(config), config.tau1, config.tau2,
-            config.ransac_distance, config.ransac_iterations, config.seed, progress)
+    mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,
+                               config.tau2, config.ransac_distance, config.ransac_iterations,
+                               config.seed, progress))
+            for k, s in processes.share(scene_lib.pair_sets(config))]
+    results = processes.gather(mine, workdir, "registration")
+    if results is None:                       # another process writes the tables
+        return [], ""
     rows = [dict(method=r.method, scene=r.scene, ms_per_keypoint=r.ms_per_keypoint,
                  **r.summary) for r in results]
     os.makedirs(workdir, exist_ok=True)

@@ -17,7 +17,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax import api, models, training
 from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import report
+from sphere_jax.eval import processes, report
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.spherical import so3
 
@@ -127,16 +127,17 @@ def adapted_bundles(config, bundles, names, workdir, progress):
 
 def run(config, workdir, progress=True):
     """LRF repeatability benchmark: returns ``(rows, markdown)``; writes lrf_results.{csv,md}
-    and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir``."""
+    and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir`` (scenes split over the
+    processes of a ``jax.distributed`` run, :mod:`processes`)."""
     bundles = method_lib.bundle_paths(config)
     names = method_lib.chosen_methods(config, method_lib.LRFS, bundles)
     os.makedirs(workdir, exist_ok=True)
     if config.adapt_steps:
         bundles = adapted_bundles(config, bundles, names, workdir, progress)
     orienters = {m: method_lib.lrf(m, config.data.radius, bundles, config.chunk) for m in names}
-    results, plot_dir = [], os.path.join(workdir, "plots")
+    mine, plot_dir = [], os.path.join(workdir, "plots")
     os.makedirs(plot_dir, exist_ok=True)
-    for s in scene_lib.pair_sets(config):
+    for k, s in processes.share(scene_lib.pair_sets(config)):
         frags = scene_lib.prepare_all(s, config.seed, progress, **scene_lib.prepare_kwargs(config))
         scene_results = evaluate_scene(
             s, orienters, match_dist=config.match_dist, rho=config.rho, seed=config.seed,
@@ -148,7 +149,10 @@ def run(config, workdir, progress=True):
                     frags[i].points, frags[i].points[row["keypoints"]], row["repeatable"],
                     os.path.join(plot_dir, f"{s.name}_{i}_{j}_{r.method}.png"),
                     f"{r.method}: {s.name} ({i}, {j}), Rep = {row['rep']:.3f}")
-        results += scene_results
+        mine.append((k, scene_results))
+    results = processes.gather(mine, workdir, "lrf")
+    if results is None:                       # another process writes the tables
+        return [], ""
     rows = [dict(method=r.method, scene=r.scene, **r.summary) for r in results]
     variant = " (rotated)" if config.rotate else ""
     md = report.write_tables(workdir, rows, report.LRF_COLUMNS, report.LRF_TABLES,
