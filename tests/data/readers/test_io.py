@@ -102,7 +102,7 @@ def test_missing_file_and_unknown_suffix(tmp_path):
     with pytest.raises(io.DataError, match="no such file"):
         io.read_ply(tmp_path / "missing.ply")
     with pytest.raises(io.DataError, match="unknown point-cloud suffix"):
-        io.read_points(tmp_path / "cloud.xyz")
+        io.read_points(tmp_path / "cloud.las")
     with pytest.raises(io.DataError, match="line 3"):
         io.read_points(_write(tmp_path, "l.ply", "ply\nformat ascii 1.0\nbogus line\n"))
 
@@ -128,3 +128,23 @@ def test_keypoint_index_files(shared, tmp_path):
     (tmp_path / "k.txt").write_text("1\n2\n999\n")
     with pytest.raises(io.DataError, match=r"\[0, 10\)"):
         threedmatch.read_keypoint_indices(tmp_path / "k.txt", 10)
+
+
+def test_xyz_txt_and_npy(tmp_path):
+    pts = np.random.default_rng(0).normal(size=(20, 3)).astype(np.float32)
+    normals = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    np.savetxt(tmp_path / "a.xyz", np.c_[pts, normals], header="x y z nx ny nz")
+    np.savetxt(tmp_path / "a.txt", pts)                  # space separated: XYZ, not ModelNet
+    np.save(tmp_path / "a.npy", pts)
+    a = io.read_points(tmp_path / "a.xyz")
+    np.testing.assert_allclose(a.points, pts, atol=1e-6)
+    np.testing.assert_allclose(a.normals, normals, atol=1e-6)
+    for name in ("a.txt", "a.npy"):
+        np.testing.assert_allclose(io.read_points(tmp_path / name).points, pts, atol=1e-6)
+    np.save(tmp_path / "b.npy", pts[:, :2])
+    with pytest.raises(io.DataError, match=r"b.npy: expected a numeric \[N, 3\] or \[N, 6\] "
+                                           r"array, got shape \(20, 2\)"):
+        io.read_points(tmp_path / "b.npy")
+    (tmp_path / "c.xyz").write_text("1 2 3\n4 5\n")
+    with pytest.raises(io.DataError, match="c.xyz, line 2: expected 3 numbers, got 2"):
+        io.read_points(tmp_path / "c.xyz")
