@@ -75,9 +75,10 @@ def _numeric_array(x, name, expected):
     return a
 
 
-def cloud(points, name="points") -> np.ndarray:
-    """``points`` as a float32 ``[N, 3]`` array: non-empty, finite, real numbers. Also takes an
-    open3d point cloud (legacy or tensor)."""
+def cloud(points, name="points", dtype=np.float32) -> np.ndarray:
+    """``points`` as a ``[N, 3]`` array of ``dtype`` (None: a float array keeps its precision,
+    the hand-crafted baselines work in float64): non-empty, finite, real numbers. Also takes
+    an open3d point cloud (legacy or tensor)."""
     points = _from_open3d(points)
     a = _numeric_array(points, name, "a float array [N, 3]")
     if a.ndim != 2 or a.shape[1] != 3:
@@ -89,7 +90,9 @@ def cloud(points, name="points") -> np.ndarray:
         raise InputError(name, "finite coordinates",
                          f"{int(bad.sum())} non-finite point(s), the first at row "
                          f"{int(np.argmax(bad))}")
-    return a.astype(np.float32, copy=False)
+    if dtype is None:
+        return a if a.dtype.kind == "f" else a.astype(np.float64)
+    return a.astype(dtype, copy=False)
 
 
 def _from_open3d(points):

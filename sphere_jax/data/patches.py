@@ -19,7 +19,7 @@ def voxel_downsample(points, voxel, return_index=False):
     """One point per occupied voxel of side ``voxel``: the centroid of the voxel's points
     (``return_index=True``: the index of the point nearest that centroid instead, so
     colours/normals can follow)."""
-    points = checks.cloud(points)
+    points = checks.cloud(points, dtype=None)
     voxel = checks.positive(voxel, "voxel")
     cells = np.floor((points - points.min(0)) / voxel).astype(np.int64)
     keys = np.ravel_multi_index(cells.T, tuple(cells.max(0) + 1))   # one int per voxel: fast
@@ -45,7 +45,7 @@ def uniform_keypoints(points, leaf):
 
 def random_keypoints(points, n, rng: np.random.Generator):
     """``n`` distinct random indices (all of them if the cloud is smaller)."""
-    points = checks.cloud(points)
+    points = checks.cloud(points, dtype=None)
     return np.sort(rng.choice(len(points), size=min(n, len(points)), replace=False))
 
 
@@ -54,7 +54,7 @@ def iss_keypoints(points, salient_radius=0.0, non_max_radius=0.0, gamma_21=0.975
     """Intrinsic Shape Signature keypoints (open3d); radii 0 let open3d pick from resolution.
     Returns indices into ``points``."""
     import open3d as o3d
-    points = checks.cloud(points)
+    points = checks.cloud(points, dtype=None)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
     kp = o3d.geometry.keypoint.compute_iss_keypoints(pcd, salient_radius, non_max_radius,
                                                      gamma_21, gamma_32, min_neighbors)
@@ -80,7 +80,7 @@ def extract_patches(points, keypoints, radius, n_points, rng: np.random.Generato
     each keypoint (indices into ``points``), the keypoint excluded. Keypoints with fewer than
     ``min_points`` neighbours are dropped (the seed skips supports under 300 points); the
     result says which were kept."""
-    points = checks.cloud(points)
+    points = checks.cloud(points, dtype=None)
     keypoints, _ = checks.keypoints(np.asarray(keypoints, np.int64).reshape(-1), len(points))
     got = patches_around(points, points[keypoints], radius, n_points, rng, min_points, tree)
     return Patches(got.points[got.valid], keypoints[got.valid], got.counts[got.valid])
@@ -103,7 +103,7 @@ def patches_around(points, centres_Kx3, radius, n_points, rng: np.random.Generat
     only, in order, so consecutive calls on consecutive chunks equal one call on all."""
     radius = checks.positive(radius, "radius")
     n_points = checks.positive(n_points, "n_points", integer=True)
-    centres_Kx3 = np.asarray(centres_Kx3, np.float32).reshape(-1, 3)
+    centres_Kx3 = np.asarray(centres_Kx3, points.dtype).reshape(-1, 3)   # compared exactly
     tree = KDTree(points) if tree is None else tree
     neigh = tree.query_radius(centres_Kx3, radius) if len(centres_Kx3) else []
     flat = np.concatenate(neigh).astype(np.int64) if len(neigh) else np.zeros(0, np.int64)

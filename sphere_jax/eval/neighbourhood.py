@@ -61,7 +61,7 @@ class Neighbourhoods:
 
 def radius_neighbourhoods(points, keypoints_Kx3, radius, tree=None) -> Neighbourhoods:
     """All points of ``points [N, 3]`` within ``radius`` of each of ``keypoints [K, 3]``."""
-    points = checks.cloud(points)
+    points = checks.cloud(points, dtype=None)
     keypoints_Kx3 = np.asarray(keypoints_Kx3, np.float64).reshape(-1, 3)
     if not radius > 0:
         raise ValueError(f"radius must be > 0, got {radius}")
@@ -82,7 +82,7 @@ def estimate_normals(points, k=17, viewpoint=(0.0, 0.0, 0.0)):
     turned towards ``viewpoint`` — the sensor, which is the origin of a 3DMatch fragment (the
     fragment frame is its first camera's); rotating a fragment about the origin keeps it so."""
     import open3d as o3d
-    points = checks.cloud(points)
+    points = checks.cloud(points, dtype=None)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
     pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(int(k)))
     pcd.orient_normals_towards_camera_location(np.asarray(viewpoint, np.float64))
