@@ -109,3 +109,9 @@ def test_bad_inputs():
     s2_grid = correlation.make_grid("near_identity", on_so3=False)
     with pytest.raises(ValueError, match="needs an SO\\(3\\) grid"):
         layers.SO3Conv(features=2, b_in=4, b_out=4, grid=s2_grid).init(jax.random.PRNGKey(0), x)
+    # An SO(3) grid is not a batch of S2 grids with 2B channels (it used to be read as one).
+    with pytest.raises(ValueError, match=r"the input of S2Conv must be an S2 grid \[N, C, 2B, "
+                                         r"2B\]; got shape \(2, 3, 8, 8, 8\)"):
+        layers.S2Conv(features=2, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x)
+    with pytest.raises(ValueError, match=r"SO\(3\) grid \[N, C, 2B, 2B, 2B\]"):
+        layers.SO3Conv(features=2, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x[:, 0])
