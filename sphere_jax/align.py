@@ -2,10 +2,11 @@
 RANSAC → point-to-plane ICP (``sphere_jax.register``; the command line is
 ``python -m experiments.register SOURCE TARGET``).
 
-The scale is chosen from the clouds when not given: the shipped networks were trained on
-3DMatch fragments voxelised at 2 cm with 0.3 m supports — 15 voxels, about 700 points on a
-surface — and a fragment's middle bounding-box side (2–98 % of its points) is about 2.1 m.
-``voxel = auto`` keeps that proportion (side / 100) unless the scan is sparser than that
+The scale is chosen from the clouds when not given: the shipped networks were trained on room
+fragments at 3DMatch's scale, voxelised at 2 cm with 0.3 m supports — 15 voxels, about 700
+points on a surface — and a 3DMatch fragment's middle bounding-box side (2–98 % of its
+points) is about 2.1 m.
+``voxel = auto`` keeps that proportion (side × 0.02 / 2.1) unless the scan is sparser than that
 (then its own point spacing), and ``radius = auto`` is 15 voxels, so a support holds as many
 points as at training time whatever the unit: a Stanford scan (middle side 0.12 m) gets
 1.2 mm voxels and 1.8 cm supports, close to the seed's 1.5 cm.
