@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 
 from experiments import cli
-from sphere_jax import api, checks, training
+from sphere_jax import api, training
 
 
 def main(argv=None):
@@ -22,13 +22,9 @@ def main(argv=None):
     parser.add_argument("--learning_rate", type=float, default=None)
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
-    try:
+    with cli.refusals():
         path, last = training.adapt(api.load_bundle(args.bundle), args.data, args.steps,
                                     args.workdir, args.learning_rate)
-    except (checks.ConfigError, checks.InputError) as e:
-        cli.fail(e)
-    except checks.SphereJaxError as e:
-        cli.fail(e, 1)
     print(f"adapted bundle in {path}: " + ", ".join(
         f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
 

@@ -7,6 +7,7 @@ line and status 1. Anything else is a bug and keeps its traceback.
 """
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import os
 import re
@@ -41,16 +42,22 @@ def run(main):
     app.run(_guarded(main), flags_parser=_parse)
 
 
+@contextlib.contextmanager
+def refusals():
+    """The project's refusals inside as one line: bad usage, input or config values exit 2,
+    any other :class:`~sphere_jax.SphereJaxError` 1 (the argparse mains use it directly)."""
+    try:
+        yield
+    except (app.UsageError, checks.ConfigError, checks.InputError) as e:
+        fail(e)
+    except checks.SphereJaxError as e:
+        fail(e, 1)
+
+
 def _guarded(main):
     def guarded(argv):
-        try:
+        with refusals():
             return main(argv)
-        except app.UsageError as e:
-            fail(e)
-        except (checks.ConfigError, checks.InputError) as e:
-            fail(e)
-        except checks.SphereJaxError as e:
-            fail(e, 1)
     return guarded
 
 

@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from experiments import cli
-from sphere_jax import align, checks
+from sphere_jax import align
 
 
 def _scale(text):
@@ -44,14 +44,10 @@ def main(argv=None):
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")
     args = parser.parse_args(argv)
     from sphere_jax.data.readers import io
-    try:
+    with cli.refusals():
         source, target = io.read_points(args.source).points, io.read_points(args.target).points
         result = align.register(source, target, args.method, args.voxel, args.radius,
                                 args.keypoints, args.seed, args.bundle, not args.no_icp)
-    except (checks.ConfigError, checks.InputError) as e:
-        cli.fail(e)
-    except checks.SphereJaxError as e:
-        cli.fail(e, 1)
     print(result.summary())
     if args.out:
         write_outputs(args.out, source, target, result)

@@ -76,9 +76,9 @@ class Bundle:
     def patches(self, points, keypoints, radius=None, seed=0):
         """All unit-ball patches ``[K, N, 3]`` at once (every keypoint must have
         :attr:`min_support` support points); :meth:`orient` and :meth:`describe` stream them."""
-        stream = self.supports(points, keypoints, radius, seed)
-        stream.check("raise")
-        return stream.make(0, stream.n)[0]
+        radius = checks.positive(radius, "radius", default=float(self.config.data.radius))
+        return extract_unit_patches(points, keypoints, radius, self.config.data.n_points, seed,
+                                    self.min_support)
 
     def _run(self, fn, x, chunk, workers):
         """:func:`run_chunked` with the bundle's chunk when the caller gives none."""
@@ -302,11 +302,13 @@ def default_workers() -> int:
     return max(1, min(4, len(os.sched_getaffinity(0))))
 
 
-def extract_unit_patches(points, keypoints, radius, n_points, seed=0):
-    """Patches ``[K, n_points, 3]`` in units of ``radius`` around ``keypoints`` (indices ``[K]``
-    or coordinates ``[K, 3]``); every keypoint must have a neighbour."""
+def extract_unit_patches(points, keypoints, radius, n_points, seed=0, min_support=1):
+    """All patches ``[K, n_points, 3]`` at once, in units of ``radius``, around ``keypoints``
+    (indices ``[K]`` or coordinates ``[K, 3]``); every keypoint must have ``min_support``
+    support points."""
     stream = SupportStream(points, keypoints, checks.positive(radius, "radius"),
-                           checks.positive(n_points, "n_points", integer=True), seed, 1)
+                           checks.positive(n_points, "n_points", integer=True), seed,
+                           min_support)
     stream.check("raise")
     return stream.make(0, stream.n)[0]
 

@@ -108,20 +108,25 @@ def first_line(error) -> str:
 def check_fits(path, variables, expected):
     """Raise :class:`BundleError` naming the first parameter of ``variables`` whose path or
     shape differs from ``expected`` (the abstract variables of the bundle's config's model)."""
-    flat = lambda t: {jax.tree_util.keystr(k): v for k, v in
-                      jax.tree_util.tree_flatten_with_path(t)[0]}
-    have, want = flat(variables), flat(expected)
+    have, want = tree_shapes(variables), tree_shapes(expected)
     for key in sorted(set(have) | set(want)):
         if key not in have:
             raise BundleError(path, f"its config's model needs parameter {key} "
-                                    f"{tuple(want[key].shape)}, which the weights lack")
+                                    f"{want[key]}, which the weights lack")
         if key not in want:
             raise BundleError(path, f"the weights hold parameter {key}, which its config's "
                                     f"model does not have (config and weights do not match)")
-        if tuple(have[key].shape) != tuple(want[key].shape):
-            raise BundleError(path, f"parameter {key} has shape {tuple(have[key].shape)} in "
-                                    f"the weights, {tuple(want[key].shape)} in its config's "
-                                    f"model (config and weights do not match)")
+        if have[key] != want[key]:
+            raise BundleError(path, f"parameter {key} has shape {have[key]} in the weights, "
+                                    f"{want[key]} in its config's model (config and weights "
+                                    f"do not match)")
+
+
+def tree_shapes(tree) -> dict:
+    """Parameter path (``['params']['Dense_0']['kernel']``) -> shape, of arrays, abstract
+    arrays or orbax metadata alike."""
+    return {jax.tree_util.keystr(k): tuple(v.shape)
+            for k, v in jax.tree_util.tree_flatten_with_path(tree)[0]}
 
 
 def read_training_data(path) -> dict:

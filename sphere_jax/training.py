@@ -223,9 +223,7 @@ def restore_newest(mngr, workdir, config, state, mesh):
 def _shapes(tree):
     """The model's part of a state (the optimiser's namedtuples come back from metadata as
     plain containers, with other key strings)."""
-    return {jax.tree_util.keystr(k): tuple(v.shape)
-            for part in ("params", "batch_stats")
-            for k, v in jax.tree_util.tree_flatten_with_path({part: tree[part]})[0]}
+    return bundle.tree_shapes({part: tree[part] for part in ("params", "batch_stats")})
 
 
 def _checkpoint_shapes(workdir, step):
