@@ -69,20 +69,23 @@ class Bundle:
     def supports(self, points, keypoints, radius=None, seed=0) -> "SupportStream":
         """The unit-ball patches around ``keypoints`` (indices ``[K]`` or coordinates
         ``[K, 3]``), drawn chunk by chunk (:class:`SupportStream`)."""
-        radius = checks.positive(radius, "radius", default=float(self.config.data.radius))
-        return SupportStream(points, keypoints, radius, self.config.data.n_points, seed,
-                             self.min_support)
+        return SupportStream(points, keypoints, self._radius(radius),
+                             self.config.data.n_points, seed, self.min_support)
 
     def patches(self, points, keypoints, radius=None, seed=0):
         """All unit-ball patches ``[K, N, 3]`` at once (every keypoint must have
         :attr:`min_support` support points); :meth:`orient` and :meth:`describe` stream them."""
-        radius = checks.positive(radius, "radius", default=float(self.config.data.radius))
-        return extract_unit_patches(points, keypoints, radius, self.config.data.n_points, seed,
+        return extract_unit_patches(points, keypoints, self._radius(radius),
+                                    self.config.data.n_points, seed,
                                     self.min_support)
 
     def _run(self, fn, x, chunk, workers):
         """:func:`run_chunked` with the bundle's chunk when the caller gives none."""
         return run_chunked(fn, x, self._chunk(chunk), workers)
+
+    def _radius(self, radius):
+        """The given support radius (checked, never replaced) or the bundle's training one."""
+        return checks.positive(radius, "radius", default=float(self.config.data.radius))
 
     def _chunk(self, chunk):
         return checks.positive(chunk, "chunk", integer=True, default=self.chunk)
