@@ -15,4 +15,5 @@ def get_config(arg=None):
     c = compass.get_config(arg)
     c.data.shapes = True
     c.data.n_points = {"paper": 2048, "mid": 1024, "cpu": 512, "tiny": 64}[c.size]
+    c.data.holdout_every = 0   # k > 0: as in ``classify``, each k-th shape is kept for testing
     return c

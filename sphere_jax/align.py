@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 from sklearn.neighbors import KDTree
 
 from sphere_jax import checks, paths
-from sphere_jax.data import patches
+from sphere_jax.data import o3d_convert, patches
 
 TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel and data.radius
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
@@ -146,10 +146,7 @@ def point_to_plane_icp(src, dst, t_init, distance):
     ``(T, fitness, rmse)``."""
     import open3d as o3d
     reg = o3d.pipelines.registration
-    as_pcd = lambda f: o3d.geometry.PointCloud(o3d.utility.Vector3dVector(
-        f.points.astype(np.float64)))
-    s, d = as_pcd(src), as_pcd(dst)
-    d.normals = o3d.utility.Vector3dVector(dst.normals.astype(np.float64))
+    s, d = o3d_convert.point_cloud(src.points), o3d_convert.point_cloud(dst.points, dst.normals)
     out = reg.registration_icp(s, d, distance, np.asarray(t_init, np.float64),
                                reg.TransformationEstimationPointToPlane())
     return np.asarray(out.transformation), float(out.fitness), float(out.inlier_rmse)

@@ -26,6 +26,7 @@ from sklearn.neighbors import KDTree
 from sphere_jax import bundle as bundle_files
 from sphere_jax import checks
 from sphere_jax import models, parallel, paths
+from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
 from sphere_jax.models import flare
 
@@ -317,12 +318,9 @@ def extract_unit_patches(points, keypoints, radius, n_points, seed=0, min_suppor
 
 
 def open3d_feature(desc_KxD):
-    """Descriptors as the ``open3d.pipelines.registration.Feature`` (``data`` is ``[D, K]``
-    float64) that open3d's feature-matching RANSAC and FGR take."""
-    import open3d as o3d
-    feature = o3d.pipelines.registration.Feature()
-    feature.data = np.ascontiguousarray(np.asarray(desc_KxD, np.float64).T)
-    return feature
+    """Descriptors as the ``open3d.pipelines.registration.Feature`` that open3d's RANSAC and
+    FGR take (:func:`sphere_jax.data.o3d_convert.feature`)."""
+    return o3d_convert.feature(desc_KxD)
 
 
 def bundle_path(name_or_path) -> str:

@@ -19,6 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from sphere_jax import paths
+from sphere_jax.data import o3d_convert
 from sphere_jax.data.readers import io, rgbd
 
 # Averaging voxel, and depth beyond which a Kinect-like sensor's noise (∝ z²) exceeds ~1 cm.
@@ -30,12 +31,11 @@ def fuse(sequence: rgbd.FrameSequence, frames, depth_scale=1000.0):
     """Points ``[M, 3]`` (float32) of ``frames`` (indices into the sequence) averaged per
     ``FUSION_VOXEL`` cell, in the frame of the first of them (``p_world = A · p``, ``A`` its
     pose)."""
-    import open3d as o3d
     a_inv = np.linalg.inv(sequence.poses[frames[0]])
     clouds = [rgbd.read_rgbd_frame(None, sequence.depth[f], sequence.intrinsics,
                                    a_inv @ sequence.poses[f], depth_scale, DEPTH_TRUNC).points
               for f in frames]
-    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.concatenate(clouds)))
+    pc = o3d_convert.point_cloud(np.concatenate(clouds))
     return np.asarray(pc.voxel_down_sample(FUSION_VOXEL).points, np.float32)
 
 

@@ -13,6 +13,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import checks
+from sphere_jax.data import o3d_convert
 
 
 def voxel_downsample(points, voxel, return_index=False):
@@ -55,7 +56,7 @@ def iss_keypoints(points, salient_radius=0.0, non_max_radius=0.0, gamma_21=0.975
     Returns indices into ``points``."""
     import open3d as o3d
     points = checks.cloud(points, dtype=None)
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
+    pcd = o3d_convert.point_cloud(points)
     kp = o3d.geometry.keypoint.compute_iss_keypoints(pcd, salient_radius, non_max_radius,
                                                      gamma_21, gamma_32, min_neighbors)
     kp = np.asarray(kp.points)

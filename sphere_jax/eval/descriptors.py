@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from sklearn.neighbors import KDTree
 
+from sphere_jax.data import o3d_convert
 from sphere_jax.eval.lrfs import shot_lrf
 from sphere_jax.eval.neighbourhood import Neighbourhoods
 
@@ -146,8 +147,7 @@ def usc(nb: Neighbourhoods, points_Nx3, frames_Kx3x3=None, tree=None):
 def fpfh(points_Nx3, normals_Nx3, keypoints_K, radius, max_nn=100):
     """FPFH ``[K, 33]`` from open3d (its neighbourhood search: ``radius``, at most ``max_nn``)."""
     import open3d as o3d
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points_Nx3, np.float64)))
-    pcd.normals = o3d.utility.Vector3dVector(np.asarray(normals_Nx3, np.float64))
+    pcd = o3d_convert.point_cloud(points_Nx3, normals_Nx3)
     param = o3d.geometry.KDTreeSearchParamHybrid(radius=float(radius), max_nn=int(max_nn))
     keypoints_K = np.asarray(keypoints_K, np.int64)
     # open3d returns the features of the sorted, de-duplicated indices: map back to the order

@@ -14,6 +14,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import checks
+from sphere_jax.data import o3d_convert
 
 
 @dataclasses.dataclass
@@ -83,7 +84,7 @@ def estimate_normals(points, k=17, viewpoint=(0.0, 0.0, 0.0)):
     fragment frame is its first camera's); rotating a fragment about the origin keeps it so."""
     import open3d as o3d
     points = checks.cloud(points, dtype=None)
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points.astype(np.float64)))
+    pcd = o3d_convert.point_cloud(points)
     pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(int(k)))
     pcd.orient_normals_towards_camera_location(np.asarray(viewpoint, np.float64))
     return np.asarray(pcd.normals, np.float32)

@@ -19,7 +19,7 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from tqdm.auto import tqdm
 
-from sphere_jax.data import patches
+from sphere_jax.data import o3d_convert, patches
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
 from sphere_jax.eval import labelled, registration, report
@@ -68,7 +68,7 @@ def remove_support_plane(points, distance=0.01, min_fraction=0.3, seed=0):
     if len(points) < 50:
         return points
     o3d.utility.random.seed(int(seed))
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
+    pcd = o3d_convert.point_cloud(points)
     _, inliers = pcd.segment_plane(distance, 3, 200)
     if len(inliers) < min_fraction * len(points) or len(points) - len(inliers) < 30:
         return points
@@ -80,7 +80,7 @@ def remove_support_plane(points, distance=0.01, min_fraction=0.3, seed=0):
 def _features(points, voxel):
     import open3d as o3d
     pts = patches.voxel_downsample(points, voxel)
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts.astype(np.float64)))
+    pcd = o3d_convert.point_cloud(pts)
     pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(2 * voxel, 30))
     pcd.orient_normals_towards_camera_location(np.zeros(3))
     fpfh = o3d.pipelines.registration.compute_fpfh_feature(

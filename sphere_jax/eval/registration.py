@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
+from sphere_jax.data import o3d_convert
 from sphere_jax.eval import methods as method_lib
 from sphere_jax.eval import processes, report
 from sphere_jax.eval import scenes as scene_lib
@@ -73,10 +74,7 @@ def ransac(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000,
     if len(points_dst_Mx3) < 3:
         return np.eye(4)
     o3d.utility.random.seed(int(seed))
-    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points_src_Mx3,
-                                                                         np.float64)))
-    dst = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points_dst_Mx3,
-                                                                         np.float64)))
+    src, dst = o3d_convert.point_cloud(points_src_Mx3), o3d_convert.point_cloud(points_dst_Mx3)
     corres = o3d.utility.Vector2iVector(np.repeat(np.arange(len(points_src_Mx3)), 2)
                                         .reshape(-1, 2).astype(np.int32))
     reg = o3d.pipelines.registration
