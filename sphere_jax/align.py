@@ -18,10 +18,9 @@ import time
 
 import numpy as np
 from scipy.spatial import cKDTree
-from sklearn.neighbors import KDTree
 
 from sphere_jax import checks, paths
-from sphere_jax.data import o3d_convert, patches
+from sphere_jax.data import o3d_convert
 
 TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel and data.radius
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
@@ -78,11 +77,8 @@ def auto_scale(source, target):
 
 
 def _fragment(name, points, voxel, n_keypoints, seed):
-    from sphere_jax.eval.neighbourhood import estimate_normals
-    from sphere_jax.eval.scenes import Fragment
-    pts = patches.voxel_downsample(points, voxel)
-    kp = patches.random_keypoints(pts, n_keypoints, np.random.default_rng(seed))
-    return Fragment(name, pts, estimate_normals(pts), kp, KDTree(pts))
+    from sphere_jax.eval import scenes
+    return scenes.fragment(name, points, voxel, np.random.default_rng(seed), n_keypoints)
 
 
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",

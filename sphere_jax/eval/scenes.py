@@ -153,20 +153,27 @@ def rotate(pair_set: PairSet, seed) -> tuple[PairSet, dict]:
     return PairSet(pair_set.name, pair_set.keys, transforms, load, keypoints), rot
 
 
-def prepare(pair_set: PairSet, key, voxel=0.02, n_keypoints=5000, normal_k=17, seed=0,
-            viewpoint=(0.0, 0.0, 0.0)) -> Fragment:
-    """Voxelise, estimate normals, pick keypoints: the release's (snapped to the nearest
-    voxelised point) or ``n_keypoints`` seeded random points."""
-    points = patches.voxel_downsample(pair_set.load(key), voxel)
+def fragment(key, points_Nx3, voxel, rng: np.random.Generator, n_keypoints=5000, normal_k=17,
+             viewpoint=(0.0, 0.0, 0.0), given_keypoints=None) -> Fragment:
+    """Voxelise ``points_Nx3``, estimate normals, pick keypoints: ``given_keypoints`` (snapped
+    to the nearest voxelised point) or ``n_keypoints`` random points drawn with ``rng``."""
+    points = patches.voxel_downsample(points_Nx3, voxel)
     normals = estimate_normals(points, normal_k, viewpoint)
     tree = KDTree(points)
-    given = pair_set.keypoints(key)
-    if given is not None:
-        keypoints = tree.query(np.asarray(given, np.float64), k=1)[1][:, 0]
+    if given_keypoints is not None:
+        keypoints = tree.query(np.asarray(given_keypoints, np.float64), k=1)[1][:, 0]
     else:
-        rng = np.random.default_rng([seed, pair_set.keys.index(key)])
         keypoints = patches.random_keypoints(points, n_keypoints, rng)
     return Fragment(key, points, normals, keypoints, tree)
+
+
+def prepare(pair_set: PairSet, key, voxel=0.02, n_keypoints=5000, normal_k=17, seed=0,
+            viewpoint=(0.0, 0.0, 0.0)) -> Fragment:
+    """:func:`fragment` of scan ``key``: the release's keypoints when it has them, else
+    ``n_keypoints`` random ones seeded by ``seed`` and the scan's place in the set."""
+    return fragment(key, pair_set.load(key), voxel,
+                    np.random.default_rng([seed, pair_set.keys.index(key)]), n_keypoints,
+                    normal_k, viewpoint, pair_set.keypoints(key))
 
 
 def prepare_all(pair_set: PairSet, seed=0, progress=False, **prepare_kwargs) -> dict:
