@@ -1,8 +1,14 @@
-"""Write the embedded default data: ``python -m experiments.make_data --out=DIR [--seed=0]``.
+"""Write the embedded default data, or pack training scans for another machine.
 
-Synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shape set, RGB-D object
-frames and object crops in the Washington RGB-D layout (see :mod:`sphere_jax.data.generators.synthetic`).
-Same seed, same bytes.
+    python -m experiments.make_data --out=DIR [--seed=0]
+    python -m experiments.make_data --pack=embedded,../shared/data/... --out=.pack [--voxel=0.02]
+
+The first: synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shape set, RGB-D
+object frames and object crops in the Washington RGB-D layout (see
+:mod:`sphere_jax.data.generators.synthetic`); same seed, same bytes. The second: each entry of
+a ``data.root`` list voxelised once (:func:`sphere_jax.data.pipeline.pack_scans`), one folder
+per entry; those folders, comma-joined in order, are a ``data.root`` that draws the same
+keypoints and batches without open3d (``experiments/gpu_paper.sh`` carries one).
 """
 from __future__ import annotations
 
@@ -10,22 +16,36 @@ import argparse
 import json
 import time
 
-from sphere_jax.data.generators import synthetic
+from experiments import cli
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=None,
-                        help=f"output folder (default: {synthetic.default_data_dir()})")
+                        help="output folder (default data: the package's cache folder)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scenes", type=int, default=2)
+    parser.add_argument("--pack", default=None,
+                        help="a data.root list to pack (voxelised scans) instead")
+    parser.add_argument("--voxel", type=float, default=0.02, help="the pack's voxel (m)")
     args = parser.parse_args(argv)
-    out = args.out or synthetic.default_data_dir(args.seed)
     t0 = time.time()
-    summary = synthetic.make_all(out, args.seed, n_scenes=args.scenes)
-    summary["washington"] = synthetic.make_default_objects(out, args.seed)
-    print(json.dumps(summary, indent=1))
-    print(f"wrote {out} in {time.time() - t0:.0f} s")
+    if args.pack is not None:
+        from sphere_jax.data import pipeline
+        if not args.out:
+            parser.error("--pack needs --out")
+        with cli.refusals():
+            folders = pipeline.pack_scans(args.pack, args.voxel, args.out)
+        print(json.dumps(folders, indent=1))
+        print("data.root=" + ",".join(folders))
+    else:
+        from sphere_jax.data.generators import synthetic
+        out = args.out or synthetic.default_data_dir(args.seed)
+        summary = synthetic.make_all(out, args.seed, n_scenes=args.scenes)
+        summary["washington"] = synthetic.make_default_objects(out, args.seed)
+        print(json.dumps(summary, indent=1))
+        args.out = out
+    print(f"wrote {args.out} in {time.time() - t0:.0f} s")
 
 
 if __name__ == "__main__":

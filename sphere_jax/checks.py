@@ -183,6 +183,7 @@ CONFIG_RULES = {
     "train.learning_rate": (float, 0, False), "train.log_every": (int, 1, True),
     "train.eval_every": (int, 1, True), "train.checkpoint_every": (int, 1, True),
     "train.eval_batches": (int, 1, True), "train.keep_checkpoints": (int, 1, True),
+    "train.time_budget_s": (float, 0, True),
     "data.radius": (float, 0, False), "data.voxel": (float, 0, False),
     "data.keypoint_leaf": (float, 0, False), "data.n_points": (int, 1, True),
     "data.min_points": (int, 0, True), "data.n_keypoints": (int, 1, True),

@@ -281,7 +281,11 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     """Train (resuming from the newest checkpoint in ``workdir``, with any device count),
     evaluate, write a bundle. ``init_variables`` (params and batch_stats, e.g. from a bundle)
     start a fresh run from trained weights (test-time adaptation). Returns the final state and
-    the last metrics."""
+    the last metrics.
+
+    ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
+    minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
+    bundle records the steps done, so the same command with a later budget resumes."""
     checks.config_values(config)
     os.makedirs(workdir, exist_ok=True)
     claim_workdir(workdir, config)
@@ -316,6 +320,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     record_workdir(workdir, config)
     last = {}
     t_last, seen, wait_last = time.perf_counter(), 0, 0.0
+    budget, t_start = float(config.train.get("time_budget_s", 0) or 0), t_last
     bar = tqdm(total=config.train.steps, initial=start, disable=not (progress and main_host),
                desc=f"{config.model}:{config.get('size', '')}")
     make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
@@ -327,23 +332,30 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
             seen += config.train.batch_size
             done = step + 1
             bar.update(1)
-            if done % config.train.log_every == 0 or done == config.train.steps:
+            final = done == config.train.steps or (
+                budget > 0 and time.perf_counter() - t_start >= budget)
+            if done % config.train.log_every == 0 or final:
                 last = {k: float(v) for k, v in metrics.items()}
                 now = time.perf_counter()
                 last.update(step=done, patches_per_s=round(seen / (now - t_last), 2),
                             data_wait_frac=round((batches.wait_s - wait_last) / (now - t_last), 4))
                 t_last, seen, wait_last = now, 0, batches.wait_s
-                if done % config.train.eval_every == 0 or done == config.train.steps:
+                if done % config.train.eval_every == 0 or final:
                     last.update(evaluate(config, source, state, eval_step, mesh))
                 if main_host:
                     log.write(json.dumps(last) + "\n")
                     log.flush()
                 bar.set_postfix(loss=f"{last['loss']:.4f}", pps=last["patches_per_s"],
                                 wait=f"{100 * last['data_wait_frac']:.0f}%")
-            if done % config.train.checkpoint_every == 0 or done == config.train.steps:
+            if done % config.train.checkpoint_every == 0 or final:
                 mngr.save(done, args=ocp.args.StandardSave(state))
+            if final:
+                break
     bar.close()
     mngr.wait_until_finished()
+    if last.get("step", config.train.steps) < config.train.steps:     # stopped by the budget
+        config = ml_collections.ConfigDict(config.to_dict())
+        config.train.steps = last["step"]
     save_bundle(workdir, config, state, source.statement())
     return state, last
 

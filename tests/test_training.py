@@ -68,6 +68,24 @@ def test_resumed_training_equals_uninterrupted(small_root, tmp_path):
     assert steps == [1, 2, 3, 4]
 
 
+def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_root, tmp_path):
+    """A budget shorter than one step ends the loop after that step: logged, checkpointed, a
+    bundle recording 1 step; the same command without the budget resumes from it."""
+    from sphere_jax import bundle
+    c = tiny("lead", small_root, steps=3, log_every=2, eval_every=2, checkpoint_every=2,
+             time_budget_s=1e-9)
+    training.train_and_evaluate(c, str(tmp_path), progress=False)
+    lines = (tmp_path / "metrics.jsonl").read_text().splitlines()
+    assert [json.loads(ln)["step"] for ln in lines] == [1]
+    assert "val_loss" in json.loads(lines[0])
+    assert bundle.read_config(str(tmp_path / "bundle")).train.steps == 1
+    c.train.time_budget_s = 0.0
+    training.train_and_evaluate(c, str(tmp_path), progress=False)
+    steps = [json.loads(ln)["step"] for ln in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert steps == [1, 2, 3]
+    assert bundle.read_config(str(tmp_path / "bundle")).train.steps == 3
+
+
 def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
     """A fresh machine continues a run from its bundle: it starts at the bundle's step, from
     its parameters (moved by Adam steps only), and refuses a bundle of another model."""

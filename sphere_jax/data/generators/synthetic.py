@@ -18,14 +18,15 @@ import os
 import shutil
 
 import numpy as np
-import open3d as o3d
 from sklearn.neighbors import KDTree
 
 from sphere_jax import paths
 from sphere_jax.data import patches
-from sphere_jax.data.generators import camera as cam
-from sphere_jax.data.generators import shapes, washington
 from sphere_jax.data.readers import io, rgbd, threedmatch
+
+# The renderer (open3d, with `camera`, `shapes` and `washington` on it) is imported only where
+# data are made: reading an existing cache, or training on scans, must not need open3d (an
+# accelerator machine may not have it).
 
 # Categories that furnish the rooms (at furniture scale) and populate the table tops.
 ROOM_OBJECTS = ["cabinet", "table", "chair", "can", "ball", "ring", "blob", "lamp", "cone"]
@@ -43,6 +44,7 @@ def _place(rng, radius, half_w, half_d, placed, tries=50):
 
 
 def _rotate_z(mesh, angle):
+    import open3d as o3d
     return mesh.rotate(o3d.geometry.get_rotation_matrix_from_xyz((0, 0, angle)), (0, 0, 0))
 
 
@@ -52,6 +54,7 @@ def _rotate_z(mesh, angle):
 
 def make_room(rng):
     """Meshes and albedos of a furnished room; returns ``(meshes, albedos, (W, D, H))``."""
+    from sphere_jax.data.generators import shapes
     w, d, h = rng.uniform(4.0, 6.0), rng.uniform(3.5, 5.0), rng.uniform(2.4, 2.9)
     t = 0.05
     meshes = [shapes.box(w, d, t, z=-t), shapes.box(w, d, t, z=h),
@@ -79,6 +82,7 @@ def make_room(rng):
 
 def loop_trajectory(rng, room_size, n_frames):
     """Camera-to-world poses along a loop inside the room, looking across it at the far walls."""
+    from sphere_jax.data.generators import camera as cam
     w, d, h = room_size
     phase, wobble = rng.uniform(0, 2 * np.pi), rng.uniform(0.05, 0.15)
     poses = []
@@ -126,10 +130,13 @@ _OVERLAP_SAMPLES = 20000
 
 
 def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, stride=10,
-               voxel=0.025, camera=cam.Camera()):
+               voxel=0.025, camera=None):
     """Render, fuse and write one scene in the 3DMatch layout under ``out_root``:
     ``<name>/cloud_bin_K.{ply,info.txt}``, ``<name>-evaluation/gt.{log,info}``,
-    ``gt_overlap.log``, and ``3DLoMatch/<name>-evaluation/``. Returns the scene summary."""
+    ``gt_overlap.log``, and ``3DLoMatch/<name>-evaluation/``. Returns the scene summary.
+    ``camera``: a :class:`camera.Camera` (default: its defaults)."""
+    from sphere_jax.data.generators import camera as cam
+    camera = camera or cam.Camera()
     rng = np.random.default_rng(seed)
     meshes, albedos, size = make_room(rng)
     scene = cam.Scene(meshes, albedos)
@@ -192,6 +199,7 @@ def make_scene(out_root, name, seed, n_frames=120, frames_per_fragment=30, strid
 def make_shapes(out_dir, seed, per_class=20, n_points=10000, test_fraction=0.25):
     """``<class>/<class>_NNNN.txt`` (x,y,z,nx,ny,nz), ``shape_names.txt``, ``train.txt`` and
     ``test.txt``: objects centred and scaled into the unit sphere, in canonical pose."""
+    from sphere_jax.data.generators import shapes
     rng = np.random.default_rng(seed)
     names = sorted(shapes.CLASSES)
     train, test = [], []
@@ -215,10 +223,14 @@ def make_shapes(out_dir, seed, per_class=20, n_points=10000, test_fraction=0.25)
 # RGB-D object frames (recognition)
 # ----------------------------------------------------------------------------------------------
 
-def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=cam.Camera()):
+def make_object_frames(out_dir, seed, n_scenes=4, views_per_scene=6, camera=None):
     """Table-top scenes of 3–6 objects; per view ``frame-N.{color,depth,mask}.png``,
     ``frame-N.pose.txt`` (camera-to-world) and ``frame-N.labels.json`` (instances: id in the
     mask, category, box [u0, v0, u1, v1] in pixels, 4×4 object-to-world pose)."""
+    import open3d as o3d
+    from sphere_jax.data.generators import camera as cam
+    from sphere_jax.data.generators import shapes
+    camera = camera or cam.Camera()
     rng = np.random.default_rng(seed)
     os.makedirs(out_dir, exist_ok=True)
     frame = 0
@@ -329,6 +341,7 @@ def ensure_default_objects(seed=0):
 
 def make_default_objects(data_dir, seed=0):
     """Write ``data_dir/washington`` (via a temporary folder renamed when complete)."""
+    from sphere_jax.data.generators import washington
     out_dir = os.path.join(data_dir, "washington")
     tmp = f"{out_dir}.partial{os.getpid()}"
     summary = washington.make_synthetic(tmp, seed * 1000 + 303)
