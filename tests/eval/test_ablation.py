@@ -1,6 +1,7 @@
 """The LEAD ablation task: its variants are the seed's configurations, the Pareto front, and
 one tiny end-to-end run (train, time, evaluate, table and plot)."""
 import os
+import shutil
 
 import numpy as np
 
@@ -41,5 +42,8 @@ def test_tiny_ablation_end_to_end(tmp_path):
     assert "LEAD ablation" in md
     assert (tmp_path / "ablation.csv").read_text().count("\n") == 3
     assert os.path.getsize(tmp_path / "ablation_pareto.png") > 5000
-    again, _ = task.run(c, str(tmp_path), progress=False)     # finished variants are reused
+    shutil.rmtree(tmp_path / "variants" / "B" / "eval")
+    again, _ = task.run(c, str(tmp_path), progress=False)     # trained and scored: reused
+    assert not (tmp_path / "variants" / "B" / "eval").exists()
     assert [r["train_s"] for r in again] == [r["train_s"] for r in rows]
+    assert [r["inlier_ratio"] for r in again] == [r["inlier_ratio"] for r in rows]
