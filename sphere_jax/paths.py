@@ -53,7 +53,7 @@ def weights_root():
 
 # The shipped bundle of each model kind: the evaluations' defaults and the examples' bundles.
 SHIPPED = {"compass": "compass_mid", "lead": "lead_mid", "lead_pn": "lead_pn_mid",
-           "sound": "sound_mid", "compass_shapes": "compass_shapes_cpu"}
+           "sound": "sound_mid", "compass_shapes": "compass_shapes_mid"}
 
 
 def shipped_bundle(name, required=False):

@@ -207,7 +207,8 @@ class ShapeSource:
                                               len(self.splits["train"][0])},
                 "classes": len(self.classes),
                 "shapes": {k: len(v[0]) for k, v in self.splits.items()},
-                **({"test_split": f"every {self.holdout_every}th shape of each class"}
+                **({"test_split": f"the shapes of each class whose rank in file order is a "
+                                 f"multiple of {self.holdout_every}"}
                    if self.holdout_every else {})}
 
     def batch(self, step, batch_size, split="train", rotate=False, copies=False,

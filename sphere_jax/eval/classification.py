@@ -54,7 +54,7 @@ def method_config(config, method):
     if method == "compass+pointnet" and not bundle_files.is_bundle(c.orient_bundle):
         raise checks.MissingError(
             f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
-            f"python -m experiments.train --config=compass_shapes:cpu")
+            f"python -m experiments.train --config=compass_shapes:mid")
     return c
 
 
