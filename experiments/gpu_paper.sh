@@ -15,7 +15,7 @@
 # Back here, for each kind:
 #     mkdir -p W/paper && tar -xzf FILES_AT/lead_paper.tar.gz -C W/paper
 #     python -m experiments.evaluate --config=eval_registration --config.bundles.lead=W/paper/lead/bundle ...
-# SIZE=tiny CARRY=DIR KINDS='lead_pn compass' runs the same steps at the tests' size
+# SIZE=tiny CARRY=DIR KINDS=lead_pn runs the same steps at the tests' size
 # (tests/test_gpu_script.py; every kind's training itself is tested in tests/test_training.py).
 set -euo pipefail
 cd "$(dirname "$0")/.."
