@@ -44,8 +44,13 @@ def scan_groups(roots):
     """Scan files of each entry of a comma-separated list of folders (or scan files), one list
     per entry; ``embedded`` (or an empty list) stands for the default synthetic scans, so real
     scans can be added to them: ``embedded,/data/3dmatch/demo``."""
-    names = [r.strip() for r in str(roots).split(",") if r.strip()] or ["embedded"]
-    return [find_scans(default_scan_root() if r == "embedded" else r) for r in names]
+    return [find_scans(default_scan_root() if r == "embedded" else r)
+            for r in root_entries(roots)]
+
+
+def root_entries(roots):
+    """The entries of a comma-separated ``data.root`` (``['embedded']`` for an empty one)."""
+    return [r.strip() for r in str(roots).split(",") if r.strip()] or ["embedded"]
 
 
 def scan_paths(roots):
@@ -328,7 +333,7 @@ def pack_scans(roots, voxel, out_dir):
     pack's folders, in the same order, are a ``data.root`` that trains on the same keypoints
     without open3d, the RGB-D fusion or the renderer (the embedded rooms: 164 MB rendered,
     a tenth of it packed). Returns ``{folder: scans}``."""
-    names = [r.strip() for r in str(roots).split(",") if r.strip()] or ["embedded"]
+    names = root_entries(roots)
     voxel = checks.positive(voxel, "voxel")
     written = {}
     for k, (name, group) in enumerate(zip(names, scan_groups(roots))):
