@@ -12,9 +12,15 @@ turns a folder into a model; this module only reads and writes the files.
 """
 from __future__ import annotations
 
+import contextlib
+import gc
+import inspect
 import json
+import logging
 import os
 import shutil
+import sys
+import time
 
 import jax
 import ml_collections
@@ -85,17 +91,58 @@ def read_variables(path) -> dict:
     target = os.path.join(os.path.abspath(str(path)), VARIABLES)
     if not os.path.isdir(target):
         raise BundleError(path, f"no {VARIABLES}/ folder (the weights)")
+    with abandoned_reads_dropped() as collect:
+        try:
+            with ocp.StandardCheckpointer() as ckpt:
+                meta = ckpt.metadata(target)
+                tree = getattr(meta, "item_metadata", meta)
+                device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+                abstract = jax.tree_util.tree_map(
+                    lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
+                return ckpt.restore(target, abstract)
+        except Exception as e:    # orbax/TensorStore report corruption in many exception types
+            reason = first_line(e)
+        collect()
+    raise BundleError(path, f"the weights in {VARIABLES}/ cannot be restored (corrupt or "
+                            f"incomplete): {reason}")
+
+
+@contextlib.contextmanager
+def abandoned_reads_dropped():
+    """Silence the reads orbax abandons when one shard of a restore fails; yields ``collect``,
+    to be called once the failure has been caught (outside its ``except``, whose traceback
+    keeps them alive).
+
+    When one read fails, orbax's event loop closes while TensorStore's threads still finish
+    the others (each then reports "Event loop is closed"), and the pending coroutines and
+    tasks report their exceptions when the garbage collector finds them, whenever that is.
+    On CPython 3.11 a report printed while the interpreter builds an AST (an import, a
+    traceback) corrupts the ast module's shared recursion counter (CPython gh-106905): a test
+    run died of it at its very end. The caller reports the failure itself, so these reports
+    are dropped (asyncio's log is muted meanwhile) and ``collect`` finalises the coroutines
+    at once; anything else unraisable still reaches the hook.
+    """
+    hook = sys.unraisablehook
+
+    def drop_abandoned(unraisable):
+        closed_loop = (isinstance(unraisable.exc_value, RuntimeError)
+                       and str(unraisable.exc_value) == "Event loop is closed")
+        if not (closed_loop or inspect.iscoroutine(unraisable.object)):
+            hook(unraisable)
+
+    def collect():
+        time.sleep(0.05)          # TensorStore's threads report within milliseconds
+        gc.collect()
+
+    asyncio_log = logging.getLogger("asyncio")     # "Task exception was never retrieved"
+    level = asyncio_log.level
+    sys.unraisablehook = drop_abandoned
+    asyncio_log.setLevel(logging.CRITICAL + 1)
     try:
-        with ocp.StandardCheckpointer() as ckpt:
-            meta = ckpt.metadata(target)
-            tree = getattr(meta, "item_metadata", meta)
-            device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
-            abstract = jax.tree_util.tree_map(
-                lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
-            return ckpt.restore(target, abstract)
-    except Exception as e:        # orbax/TensorStore report corruption in many exception types
-        raise BundleError(path, f"the weights in {VARIABLES}/ cannot be restored (corrupt or "
-                                f"incomplete): {first_line(e)}") from None
+        yield collect
+    finally:
+        sys.unraisablehook = hook
+        asyncio_log.setLevel(level)
 
 
 def first_line(error) -> str:

@@ -202,19 +202,21 @@ def restore_newest(mngr, workdir, config, state, mesh):
             raise checks.ConfigError(
                 f"--workdir {workdir} holds checkpoints of another model than this config's "
                 f"{config.model} (step {step} differs at {diff}): choose another workdir")
-        try:
-            return step, mngr.restore(step, args=ocp.args.StandardRestore(abstract)), mngr
-        except Exception as e:                 # orbax/TensorStore: many exception types
-            warnings.warn(f"checkpoint of step {step} in {workdir} cannot be restored "
-                          f"({bundle.first_line(e)}); moved to unrestorable/{step}, trying the "
-                          f"one before", stacklevel=2)
-            if jax.process_index() == 0:
-                aside = os.path.join(workdir, "unrestorable")
-                os.makedirs(aside, exist_ok=True)
-                os.replace(os.path.join(workdir, "checkpoints", str(step)),
-                           os.path.join(aside, f"{step}-{int(time.time())}"))
-            mngr.close()
-            mngr = checkpoint_manager(workdir, config)
+        with bundle.abandoned_reads_dropped() as collect:
+            try:
+                return step, mngr.restore(step, args=ocp.args.StandardRestore(abstract)), mngr
+            except Exception as e:             # orbax/TensorStore: many exception types
+                reason = bundle.first_line(e)
+            collect()
+        warnings.warn(f"checkpoint of step {step} in {workdir} cannot be restored ({reason}); "
+                      f"moved to unrestorable/{step}, trying the one before", stacklevel=2)
+        if jax.process_index() == 0:
+            aside = os.path.join(workdir, "unrestorable")
+            os.makedirs(aside, exist_ok=True)
+            os.replace(os.path.join(workdir, "checkpoints", str(step)),
+                       os.path.join(aside, f"{step}-{int(time.time())}"))
+        mngr.close()
+        mngr = checkpoint_manager(workdir, config)
     raise checks.SphereJaxError(f"no checkpoint in {workdir}/checkpoints restores (the "
                                 f"unrestorable ones are in {workdir}/unrestorable); delete the "
                                 f"workdir's checkpoints to start afresh")
