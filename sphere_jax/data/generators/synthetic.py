@@ -326,8 +326,20 @@ def ensure_default_data(seed=0, out_dir=None):
     tmp = f"{out_dir}.partial{os.getpid()}"
     make_all(tmp, seed)
     os.makedirs(os.path.dirname(out_dir) or ".", exist_ok=True)
-    os.replace(tmp, out_dir)
+    _move_into_place(tmp, out_dir, "summary.json")
     return out_dir
+
+
+def _move_into_place(tmp, out_dir, last_file):
+    """Rename the finished folder ``tmp`` to ``out_dir``. Two processes started on an empty
+    cache both generate; the one that finishes second keeps the first one's copy (the same
+    seed gives the same files) and drops its own."""
+    try:
+        os.replace(tmp, out_dir)
+    except OSError:
+        if not os.path.isfile(os.path.join(out_dir, last_file)):
+            raise
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def ensure_default_objects(seed=0):
@@ -346,6 +358,6 @@ def make_default_objects(data_dir, seed=0):
     tmp = f"{out_dir}.partial{os.getpid()}"
     summary = washington.make_synthetic(tmp, seed * 1000 + 303)
     if os.path.isdir(out_dir):
-        shutil.rmtree(out_dir)
-    os.replace(tmp, out_dir)
+        shutil.rmtree(out_dir, ignore_errors=True)
+    _move_into_place(tmp, out_dir, "camera-intrinsics.txt")
     return summary

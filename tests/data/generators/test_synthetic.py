@@ -111,3 +111,21 @@ def test_fragments_have_thin_surfaces_at_the_voxel_density():
           f"{np.median(counts) / plane:.2f}x a plane's points")
     assert np.median(residual) < 0.005
     assert 0.8 < np.median(counts) / plane < 2.2     # v1: 3.3x; redkitchen: 1.4x
+
+
+def test_a_second_process_generating_the_default_data_keeps_the_first_copy(tmp_path,
+                                                                            monkeypatch):
+    """Two runs started on an empty cache both generate; the one finishing second must not
+    fail on the folder the other moved into place (``os.replace`` refuses a non-empty one)."""
+    out = tmp_path / "synthetic"
+
+    def make_all_while_another_finishes(tmp, seed):
+        for folder, text in ((tmp, "ours"), (str(out), "theirs")):
+            os.makedirs(folder)
+            with open(os.path.join(folder, "summary.json"), "w") as f:
+                f.write(text)
+
+    monkeypatch.setattr(synthetic, "make_all", make_all_while_another_finishes)
+    assert synthetic.ensure_default_data(out_dir=str(out)) == str(out)
+    assert (out / "summary.json").read_text() == "theirs"
+    assert os.listdir(tmp_path) == ["synthetic"]                 # our copy is gone
