@@ -5,6 +5,7 @@ test: Wigner's closed-form sum for d, and synthesis / correlation as explicit su
 """
 from __future__ import annotations
 
+import functools
 from math import cos, factorial, sin, sqrt
 
 import jax
@@ -302,3 +303,15 @@ def shifted_batch_stats(variables, rng):
         lambda a: a + jnp.asarray(rng.uniform(0.2, 0.8, a.shape), jnp.float32),
         variables["batch_stats"])
     return {"params": variables["params"], "batch_stats": stats}
+
+
+def init(model, *inputs, seed=0, **kwargs):
+    """``model.init(PRNGKey(seed), *inputs, **kwargs)`` under ``jax.jit``: run eagerly, a
+    spherical network's init dispatches its transforms op by op (measured: 25 s against 2.9 s
+    for a bandwidth-8 Compass), the same values to 3e-8."""
+    return jax.jit(functools.partial(model.init, **kwargs))(jax.random.PRNGKey(seed), *inputs)
+
+
+def apply(model, variables, *inputs, **kwargs):
+    """``model.apply(variables, *inputs, **kwargs)`` under ``jax.jit`` (see :func:`init`)."""
+    return jax.jit(functools.partial(model.apply, **kwargs))(variables, *inputs)

@@ -10,13 +10,14 @@ import pytest
 from configs import lead, sound
 import sphere_jax
 from sphere_jax import api, models, paths, training
+from tests import reference
 
 
 def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     config = sound.get_config("tiny")
     model = models.build(config)
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
-    variables = model.init(jax.random.PRNGKey(0), x * 0.3)
+    variables = reference.init(model, x * 0.3)
     state = {"params": variables["params"], "batch_stats": variables["batch_stats"]}
     training.save_bundle(str(tmp_path), config, state)
     bundle = api.load_bundle(tmp_path / "bundle")
@@ -68,7 +69,7 @@ def sound_bundle(tmp_path_factory):
     config = sound.get_config("tiny")
     model = models.build(config)
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
-    variables = model.init(jax.random.PRNGKey(0), x * 0.3)
+    variables = reference.init(model, x * 0.3)
     training.save_bundle(str(root), config, {"params": variables["params"],
                                              "batch_stats": variables["batch_stats"]})
     return root / "bundle"
@@ -120,7 +121,7 @@ def test_frames_must_be_rotations_and_only_where_used(sound_bundle):
     config = lead_config.get_config("tiny")
     model = models.build(config)
     x = np.zeros((1, config.data.n_points, 3), np.float32)
-    lead = api.Bundle(model, model.init(jax.random.PRNGKey(0), x), config)
+    lead = api.Bundle(model, reference.init(model, x), config)
     for frames, message in [(np.zeros((4, 3, 3)), "not.*det = 0"),
                             (np.full((4, 3, 3), np.nan), "non-finite"),
                             (np.eye(3), r"rotations \[4, 3, 3\]")]:

@@ -6,13 +6,14 @@ import pytest
 
 from configs import lead
 from sphere_jax import api, bundle, models, paths
+from tests import reference
 
 
 def test_save_load_round_trip_and_training_data(tmp_path):
     config = lead.get_config("tiny")
     model = models.build(config)
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
-    variables = model.init(jax.random.PRNGKey(0), x)
+    variables = reference.init(model, x)
     statement = {"kind": "scans", "folders": {"/data/a": 3}, "keypoints": {"train": 9}}
     path = bundle.save(tmp_path / "b", config, dict(variables), statement)
     assert bundle.is_bundle(path) and bundle.read_config(path).model == "lead"

@@ -9,6 +9,7 @@ import pytest
 from configs import classify, compass, lead, lead_pn, sound
 from sphere_jax import models, training
 from sphere_jax.data.generators import synthetic
+from tests import reference
 from tests.data.generators.test_synthetic import SMALL
 
 CONFIGS = {"compass": compass, "lead": lead, "lead_pn": lead_pn, "sound": sound,
@@ -162,7 +163,10 @@ def test_fused_training_equals_layer_by_layer(name, size):
     for fused in (True, False):
         config.train.fused = fused
         model = training.training_model(config).clone(axis_name=None)
-        v = model.init(jax.random.PRNGKey(0), batch["patches"], train=False)
+        # LEAD's bound above was measured from the eager init's values (jit's differ in the
+        # 8th digit, and so do which Chamfer neighbours switch); the others init under jit.
+        v = (model.init(jax.random.PRNGKey(0), batch["patches"], train=False) if name == "lead"
+             else reference.init(model, batch["patches"], train=False))
         f = lambda p, b: training.loss_fn(config, model, {**v, "params": p}, b,
                                           jax.random.PRNGKey(1))
         grad = jax.jit(jax.value_and_grad(f, has_aux=True))

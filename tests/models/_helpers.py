@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from sphere_jax.spherical import so3, transforms
+from tests import reference
 
 
 def surfaces(n=6, points=2000, seed=0):
@@ -22,11 +23,12 @@ def map_equivariance(maps_fn, patches, seeds=(0, 1, 2)):
     """``maps(R·P)`` against ``L_R maps(P)`` for SO(3) maps ``[N, 2b, 2b, 2b]``: relative errors
     per rotation, and the same comparison against the other patches' maps, for scale."""
     base = maps_fn(patches)
+    rotate = jax.jit(jax.vmap(transforms.rotate_so3, (0, None)))
     errs, unrelated = [], []
     for seed in seeds:
         rot = np.asarray(so3.random_rotation(jax.random.PRNGKey(seed)))
         lhs = maps_fn(patches @ rot.T)
-        rhs = jax.vmap(transforms.rotate_so3, (0, None))(base, rot)
+        rhs = rotate(base, rot)
         norm = jnp.linalg.norm(rhs)
         errs.append(float(jnp.linalg.norm(lhs - rhs) / norm))
         unrelated.append(float(jnp.linalg.norm(lhs - jnp.roll(rhs, 1, 0)) / norm))
@@ -38,7 +40,7 @@ def assert_maps_equivariant(label, model, maps, capsys, tol=0.25):
     (SO(3) maps) rotate with the patches: not exactly (the patch signal is not band-limited and
     ReLU acts on the grid), but within ``tol`` and far closer than another patch's maps."""
     p = surfaces()
-    variables = model.init(jax.random.PRNGKey(0), p)
+    variables = reference.init(model, p)
     errs, unrelated = map_equivariance(jax.jit(lambda x: maps(model, variables, x)), p)
     with capsys.disabled():
         print(f"\n  {label} equivariance, relative error: {errs.round(3)}; against other "

@@ -2,6 +2,7 @@
 import jax
 
 from sphere_jax import models
+from tests import reference
 from tests.models import _helpers
 
 
@@ -18,6 +19,6 @@ def test_lead_outputs_are_named():
     model = models.Lead(bandwidths=(4, 4, 4, 4, 4, 4), features=(2, 2, 2, 2, 1),
                         decoder_side=3, decoder_hidden=(4, 4, 4))
     p = _helpers.surfaces(2, 64)
-    out = model.apply(model.init(jax.random.PRNGKey(0), p), p)
+    out = reference.apply(model, reference.init(model, p), p)
     assert isinstance(out, models.LeadOut)
     assert out.maps.shape == (2, 8, 8, 8) and out.reconstructions.shape == (2, 9, 3)

@@ -4,13 +4,14 @@ import numpy as np
 
 from sphere_jax import models
 from sphere_jax.models import lead_pn
+from tests import reference
 from tests.models import _helpers
 
 
 def test_codes_do_not_change_when_the_patch_rotates(capsys):
     model = models.LeadPN(features=(16, 32, 64), decoder_side=3, decoder_hidden=(8, 8, 8))
     p = _helpers.surfaces(8, 512)
-    variables = model.init(jax.random.PRNGKey(0), p)
+    variables = reference.init(model, p)
     describe = jax.jit(lambda x: lead_pn.describe(model, variables, x))
     base = np.asarray(describe(p))
     errs = []

@@ -26,9 +26,9 @@ def test_sound_fused_trunk_equals_layer_by_layer():
                   descriptor_features=(3, 1), lrf_bandwidths=(8, 8, 8), lrf_features=(2, 1),
                   decoder_side=4, decoder_hidden=(8, 8, 8))
     p = jnp.asarray(rng.normal(size=(3, 64, 3)) * 0.4, jnp.float32)
-    variables = model.init(jax.random.PRNGKey(0), p, train=False)
+    variables = reference.init(model, p, train=False)
     variables = reference.shifted_batch_stats(variables, rng)
-    want = model.clone(fused=False).apply(variables, p, train=False)
+    want = reference.apply(model.clone(fused=False), variables, p, train=False)
     got = jax.jit(lambda v, p: model.apply(v, p, train=False))(variables, p)
     assert isinstance(got, SoundOut)
     assert rel_err(got.maps, want.maps) < 1e-5
