@@ -1,6 +1,7 @@
 """Data-parallel training over a mesh of host devices (two CPU devices, forced through
 XLA_FLAGS in child processes: the device count is fixed when JAX starts)."""
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -63,7 +64,16 @@ def _train(root, workdir, devices, steps):
     return np.load(os.path.join(workdir, "params.npy"))
 
 
-def test_two_hosts_equal_one_host_with_two_devices(small_root_parallel, tmp_path):
+@pytest.fixture(scope="module")
+def two_devices_4_steps(small_root_parallel, tmp_path_factory):
+    """``(workdir, params)`` of 4 steps on two devices: the reference of the two-host run,
+    and the interrupted half of the resumed one (a child process less for each)."""
+    workdir = tmp_path_factory.mktemp("two_devices_4_steps") / "run"
+    return workdir, _train(small_root_parallel, workdir, 2, 4)
+
+
+def test_two_hosts_equal_one_host_with_two_devices(small_root_parallel, two_devices_4_steps,
+                                                   tmp_path):
     """Two processes of one CPU device each, joined by jax.distributed on localhost, sharing
     a workdir: the same parameters, bitwise, as one process with two devices."""
     with socket.socket() as s:                       # a free port for the coordinator
@@ -76,11 +86,12 @@ def test_two_hosts_equal_one_host_with_two_devices(small_root_parallel, tmp_path
         assert proc.returncode == 0, err[-3000:]
     first, second = (np.load(tmp_path / "hosts" / f"params_{i}.npy") for i in range(2))
     np.testing.assert_array_equal(first, second)
-    np.testing.assert_array_equal(first, _train(small_root_parallel, tmp_path / "one", 2, 4))
+    one_host, one_host_params = two_devices_4_steps
+    np.testing.assert_array_equal(first, one_host_params)
     # Bundles trained on two devices (or hosts) load in this one-device process.
     from sphere_jax import api
-    for run in ("hosts", "one"):
-        loaded = api.load_bundle(tmp_path / run / "bundle")
+    for run in (tmp_path / "hosts", one_host):
+        loaded = api.load_bundle(run / "bundle")
         assert np.isfinite(_frame_parameters(loaded.variables["params"])).all()
     assert len((tmp_path / "hosts" / "metrics.jsonl").read_text().splitlines()) == 4
 
@@ -89,17 +100,19 @@ def _rel(a, b):
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
-def test_device_counts_agree_and_runs_repeat_bitwise(small_root_parallel, tmp_path):
+def test_device_counts_agree_and_runs_repeat_bitwise(small_root_parallel, two_devices_4_steps,
+                                                    tmp_path):
     one = _train(small_root_parallel, tmp_path / "one", 1, 10)
     two = _train(small_root_parallel, tmp_path / "two", 2, 10)
     again = _train(small_root_parallel, tmp_path / "again", 2, 10)
     np.testing.assert_array_equal(two, again)
     assert _rel(two, one) <= 1e-6
-    # Interrupted after 4 steps on two devices, resumed on one.
-    _train(small_root_parallel, tmp_path / "resumed", 2, 4)
+    # Interrupted after 4 steps on two devices (a copy of that run), resumed on one.
+    interrupted, four_steps = two_devices_4_steps
+    shutil.copytree(interrupted, tmp_path / "resumed")
     resumed = _train(small_root_parallel, tmp_path / "resumed", 1, 10)
     assert _rel(resumed, one) <= 1e-6
-    assert _rel(one, _train(small_root_parallel, tmp_path / "short", 1, 4)) > 1e-3
+    assert _rel(one, four_steps) > 1e-3                # 10 steps are not 4: the runs trained
 
 
 @pytest.fixture(scope="module")
