@@ -8,6 +8,7 @@ import pytest
 from sphere_jax import paths
 
 _XLA_CACHE = "JAX_COMPILATION_CACHE_DIR"
+_OWNER = "SPHERE_JAX_TEST_XLA_CACHE_OWNER"
 
 
 def pytest_configure(config):
@@ -17,7 +18,8 @@ def pytest_configure(config):
     tests/test_training.py 461 s -> 305 s on an empty cache). An existing setting is kept."""
     if _XLA_CACHE not in os.environ:
         os.environ[_XLA_CACHE] = tempfile.mkdtemp(prefix="sphere_jax_xla_")
-        os.environ["SPHERE_JAX_TEST_XLA_CACHE_OWNED"] = "1"
+        # The xdist workers inherit this too: only the process that made it removes it.
+        os.environ[_OWNER] = str(os.getpid())
     os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.1")
     if "jax" in sys.modules:     # imported before us (a plugin): it read the variables already
         jax = sys.modules["jax"]
@@ -40,7 +42,8 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_unconfigure(config):
-    if os.environ.pop("SPHERE_JAX_TEST_XLA_CACHE_OWNED", None):
+    if os.environ.get(_OWNER) == str(os.getpid()):
+        del os.environ[_OWNER]
         shutil.rmtree(os.environ.pop(_XLA_CACHE), ignore_errors=True)
 
 
@@ -58,7 +61,6 @@ def unraisable_reports(monkeypatch):
     """What reaches ``sys.unraisablehook`` during the test (call ``gc.collect()`` before
     looking). A corrupt checkpoint must leave none: on CPython 3.11 such reports, printed
     while an AST is being built, crash the interpreter's parser (gh-106905)."""
-    import sys
     reports = []
     monkeypatch.setattr(sys, "unraisablehook", lambda u: reports.append(
         f"{type(u.object).__name__}: {u.exc_value!r}"[:200]))
