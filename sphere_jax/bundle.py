@@ -12,7 +12,6 @@ turns a folder into a model; this module only reads and writes the files.
 """
 from __future__ import annotations
 
-import contextlib
 import gc
 import inspect
 import json
@@ -91,36 +90,36 @@ def read_variables(path) -> dict:
     target = os.path.join(os.path.abspath(str(path)), VARIABLES)
     if not os.path.isdir(target):
         raise BundleError(path, f"no {VARIABLES}/ folder (the weights)")
-    with abandoned_reads_dropped() as collect:
-        try:
-            with ocp.StandardCheckpointer() as ckpt:
-                meta = ckpt.metadata(target)
-                tree = getattr(meta, "item_metadata", meta)
-                device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
-                abstract = jax.tree_util.tree_map(
-                    lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
-                return ckpt.restore(target, abstract)
-        except Exception as e:    # orbax/TensorStore report corruption in many exception types
-            reason = first_line(e)
-        collect()
+
+    def restore():
+        with ocp.StandardCheckpointer() as ckpt:
+            meta = ckpt.metadata(target)
+            tree = getattr(meta, "item_metadata", meta)
+            device = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
+            abstract = jax.tree_util.tree_map(
+                lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype, sharding=device), tree)
+            return ckpt.restore(target, abstract)
+
+    variables, reason = restore_quietly(restore)
+    if reason is None:
+        return variables
     raise BundleError(path, f"the weights in {VARIABLES}/ cannot be restored (corrupt or "
                             f"incomplete): {reason}")
 
 
-@contextlib.contextmanager
-def abandoned_reads_dropped():
-    """Silence the reads orbax abandons when one shard of a restore fails; yields ``collect``,
-    to be called once the failure has been caught (outside its ``except``, whose traceback
-    keeps them alive).
+def restore_quietly(restore):
+    """``(restore(), None)``, or ``(None, reason)`` when the orbax restore fails (orbax and
+    TensorStore report corruption in many exception types; ``reason`` is the first line).
 
-    When one read fails, orbax's event loop closes while TensorStore's threads still finish
-    the others (each then reports "Event loop is closed"), and the pending coroutines and
-    tasks report their exceptions when the garbage collector finds them, whenever that is.
+    When one shard's read fails, orbax's event loop closes while TensorStore's threads still
+    finish the others (each then reports "Event loop is closed"), and the pending coroutines
+    and tasks report their exceptions when the garbage collector finds them, whenever that is.
     On CPython 3.11 a report printed while the interpreter builds an AST (an import, a
     traceback) corrupts the ast module's shared recursion counter (CPython gh-106905): a test
     run died of it at its very end. The caller reports the failure itself, so these reports
-    are dropped (asyncio's log is muted meanwhile) and ``collect`` finalises the coroutines
-    at once; anything else unraisable still reaches the hook.
+    are dropped (asyncio's log is muted meanwhile) and the abandoned coroutines are collected
+    at once, outside the ``except`` whose traceback keeps them alive; anything else
+    unraisable still reaches the hook.
     """
     hook = sys.unraisablehook
 
@@ -130,16 +129,18 @@ def abandoned_reads_dropped():
         if not (closed_loop or inspect.iscoroutine(unraisable.object)):
             hook(unraisable)
 
-    def collect():
-        time.sleep(0.05)          # TensorStore's threads report within milliseconds
-        gc.collect()
-
     asyncio_log = logging.getLogger("asyncio")     # "Task exception was never retrieved"
     level = asyncio_log.level
     sys.unraisablehook = drop_abandoned
     asyncio_log.setLevel(logging.CRITICAL + 1)
     try:
-        yield collect
+        try:
+            return restore(), None
+        except Exception as e:
+            reason = first_line(e)
+        time.sleep(0.05)          # TensorStore's threads report within milliseconds
+        gc.collect()
+        return None, reason
     finally:
         sys.unraisablehook = hook
         asyncio_log.setLevel(level)

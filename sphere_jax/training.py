@@ -202,12 +202,10 @@ def restore_newest(mngr, workdir, config, state, mesh):
             raise checks.ConfigError(
                 f"--workdir {workdir} holds checkpoints of another model than this config's "
                 f"{config.model} (step {step} differs at {diff}): choose another workdir")
-        with bundle.abandoned_reads_dropped() as collect:
-            try:
-                return step, mngr.restore(step, args=ocp.args.StandardRestore(abstract)), mngr
-            except Exception as e:             # orbax/TensorStore: many exception types
-                reason = bundle.first_line(e)
-            collect()
+        restored, reason = bundle.restore_quietly(
+            lambda: mngr.restore(step, args=ocp.args.StandardRestore(abstract)))
+        if reason is None:
+            return step, restored, mngr
         warnings.warn(f"checkpoint of step {step} in {workdir} cannot be restored ({reason}); "
                       f"moved to unrestorable/{step}, trying the one before", stacklevel=2)
         if jax.process_index() == 0:
