@@ -136,8 +136,9 @@ class SceneResult:
 def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                    prepare_kwargs=None, tau1=TAU1, tau2=TAU2, ransac_distance=0.05,
                    ransac_iterations=50_000, seed=0, progress=True) -> list[SceneResult]:
-    """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``) on every pair
-    of ``pair_set``, on the same prepared fragments and keypoints."""
+    """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``, or a
+    :class:`~sphere_jax.eval.methods.GroundTruthTurned`) on every pair of ``pair_set``, on the
+    same prepared fragments and keypoints."""
     frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
     n_kp = sum(len(f.keypoints) for f in frags.values())
     results = []
@@ -151,8 +152,11 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
             if d.shape[0] != len(frags[k].keypoints) or not np.all(np.isfinite(d)):
                 raise ValueError(f"method {name!r} returned {d.shape} descriptors with "
                                  f"non-finite values or a wrong count for scan {k}")
-        rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], desc[i], desc[j], t,
-                                               tau1, ransac_distance, ransac_iterations, seed))
+        turn = getattr(describe, "turn", None)        # a ground-truth diagnostic
+        rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], desc[i],
+                                               desc[j] if turn is None else turn(desc[j], t),
+                                               t, tau1, ransac_distance, ransac_iterations,
+                                               seed))
                 for (i, j), t in pair_set.transforms.items()]
         results.append(SceneResult(name, pair_set.name, rows, summarise(rows, tau1, tau2), ms))
     return results
@@ -175,9 +179,12 @@ def run(config, workdir, progress=True):
     fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the
     processes and process 0 writes the tables (:mod:`processes`)."""
     bundles = method_lib.bundle_paths(config)
-    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
-    describers = {m: method_lib.descriptor(m, config.data.radius, bundles, config.fpfh_radius,
-                                           config.chunk) for m in names}
+    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS +
+                                      method_lib.GROUND_TRUTH, bundles)
+    describers = {m: method_lib.ground_truth_turned(m, config.data.radius, bundles, config.chunk)
+                  if m in method_lib.GROUND_TRUTH else
+                  method_lib.descriptor(m, config.data.radius, bundles, config.fpfh_radius,
+                                        config.chunk) for m in names}
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,
                                config.tau2, config.ransac_distance, config.ransac_iterations,
                                config.seed, progress))
