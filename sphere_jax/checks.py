@@ -188,7 +188,8 @@ CONFIG_RULES = {
     "data.keypoint_leaf": (float, 0, False), "data.n_points": (int, 1, True),
     "data.min_points": (int, 0, True), "data.n_keypoints": (int, 1, True),
     "data.normal_k": (int, 3, True), "data.max_pairs": (int, 0, True),
-    "data.val_fraction": (float, 0, True), "infer_chunk": (int, 1, True),
+    "data.val_fraction": (float, 0, True), "data.copy_jitter": (float, 0, True),
+    "infer_chunk": (int, 1, True),
     "chunk": (int, 1, True), "adapt_steps": (int, 0, True),
 }
 NOTES = {"data.max_pairs": " (0: every pair)", "data.val_fraction": " and below 1"}

@@ -71,7 +71,9 @@ def build_source(config):
 def get_batch(config, source, step, split="train"):
     spec, bs = models.spec(config.model), config.train.batch_size
     if not isinstance(source, pipeline.ShapeSource):
-        return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion)
+        return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
+                            copy_draw=config.data.get("copy_draw", "patch"),
+                            copy_jitter=config.data.get("copy_jitter", 0.0))
     split = "test" if split == "val" else split
     if not spec.labelled:                                       # Compass on whole shapes
         return source.batch(step, bs, split, copies=spec.copies,
@@ -360,6 +362,11 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     return state, last
 
 
+# config.data fields added after bundles were first written, with the value those bundles
+# were trained with.
+DATA_ADDED = {"copy_draw": "patch", "copy_jitter": 0.0}
+
+
 def continued_bundle(config):
     """``(steps done, variables)`` of ``config.train.init_bundle``: a run continued on another
     machine, from the bundle the last one committed. The model and data must be the bundle's;
@@ -367,13 +374,14 @@ def continued_bundle(config):
     function of the step), but Adam's moments start afresh — they are not in bundles."""
     path = config.train.init_bundle
     trained = bundle.read_config(path)
+    as_dict = lambda c: json.loads(json.dumps(c.to_dict() if hasattr(c, "to_dict") else c))
     for key in ("model", "model_kwargs", "data", "seed"):
-        mine = config.get(key)
-        theirs = trained.get(key)
-        as_dict = lambda c: json.loads(json.dumps(c.to_dict() if hasattr(c, "to_dict") else c))
-        if as_dict(mine) != as_dict(theirs):
+        mine, theirs = as_dict(config.get(key)), as_dict(trained.get(key))
+        if key == "data" and isinstance(theirs, dict):      # written before those fields
+            theirs = {**DATA_ADDED, **theirs}
+        if mine != theirs:
             raise ValueError(f"train.init_bundle={path!r} was trained with another {key} "
-                             f"({as_dict(theirs)!r}) than this config's ({as_dict(mine)!r})")
+                             f"({theirs!r}) than this config's ({mine!r})")
     done = int(trained.train.steps)
     if done >= config.train.steps:
         raise ValueError(f"train.init_bundle={path!r} has {done} steps done; train.steps="

@@ -138,26 +138,43 @@ class PatchSource:
         g = rng.choice(len(w), batch_size, p=w / w.sum())
         return np.stack([pools[k][rng.integers(len(pools[k]))] for k in g])
 
-    def batch(self, step, batch_size, split="train", copies=False, occlusion=True):
+    def batch(self, step, batch_size, split="train", copies=False, occlusion=True,
+              copy_draw="patch", copy_jitter=0.0):
         """``{'patches': [B, N, 3]}`` in units of the radius; with ``copies``, also
-        ``'copies'`` (each patch rotated by ``'rotations'`` [B, 3, 3], occluded, resampled)."""
+        ``'copies'`` (each patch rotated by ``'rotations'`` [B, 3, 3], occluded, resampled:
+        :func:`rotated_copies`). ``copy_draw``: what a copy is made of — ``'patch'`` the
+        patch's own points (the seed's), ``'support'`` a second, independent draw of N points
+        from the keypoint's whole support, as a second scan samples the same surface
+        differently."""
+        checks.choice(copy_draw, "copy_draw", COPY_DRAWS)
         rng = np.random.default_rng([self.seed, step, 0 if split == "train" else 1])
         picks = self.draw(rng, batch_size, split)
-        out = np.empty((batch_size, self.n_points, 3), np.float32)
+        out = self._patches(picks, rng)
+        result = {"patches": out}
+        if copies:
+            base = out if copy_draw == "patch" else self._patches(picks, rng)
+            result.update(rotated_copies(base, rng, occlusion, copy_jitter))
+        return result
+
+    def _patches(self, picks, rng):
+        out = np.empty((len(picks), self.n_points, 3), np.float32)
         for s in np.unique(picks[:, 0]):
             rows = np.nonzero(picks[:, 0] == s)[0]
             got = patches.extract_patches(self.clouds[s], picks[rows, 1], self.radius,
                                           self.n_points, rng, tree=self.trees[s])
             out[rows] = got.points / self.radius
-        result = {"patches": out}
-        if copies:
-            result.update(rotated_copies(out, rng, occlusion))
-        return result
+        return out
 
 
-def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True):
-    """Each unit patch rotated by a random rotation, occluded (seed 3.1.5) and resampled to N
-    points: ``{'copies': [B, N, 3], 'rotations': [B, 3, 3]}`` — Compass's training pairs."""
+COPY_DRAWS = ("patch", "support")
+
+
+def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True, jitter=0.0):
+    """Each unit patch rotated by a random rotation, occluded (seed 3.1.5), resampled to N
+    points and, with ``jitter`` > 0, moved by Gaussian noise of that std (units of the radius):
+    ``{'copies': [B, N, 3], 'rotations': [B, 3, 3]}`` — Compass's training pairs."""
+    if not np.isfinite(jitter) or jitter < 0:
+        raise checks.InputError("copy_jitter", "a finite number >= 0", repr(jitter))
     b, n, _ = patches_BxNx3.shape
     rots = augment.random_rotations(rng, b)
     cop = np.empty_like(patches_BxNx3)
@@ -166,6 +183,8 @@ def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True):
         if occlusion:
             rotated = augment.occlude(rotated, 1.0, rng)
         cop[k] = augment.resample(rotated, n, rng)
+        if jitter:
+            cop[k] = augment.jitter(cop[k], jitter, rng)
     return {"copies": cop, "rotations": rots.astype(np.float32)}
 
 

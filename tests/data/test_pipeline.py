@@ -42,3 +42,34 @@ def test_train_only_shape_set_gets_a_held_out_split(shared):
     assert res.statement()["shapes"]["test"] == len(test[0])
     with pytest.raises(ValueError, match="holdout_every"):
         pipeline.holdout_split(train[0], train[1], 1)
+
+
+def test_copies_drawn_from_the_whole_support_are_a_second_sampling(tmp_path):
+    """'patch' copies (the seed's) reuse the patch's own points; 'support' copies are a second
+    draw from the keypoint's support: after undoing the rotation, most of their points are not
+    among the patch's, yet all lie on the same surface (the plane z = 0 here), moved only by the
+    requested jitter."""
+    from sphere_jax.data.readers import io
+    rng = np.random.default_rng(0)
+    pts = np.c_[rng.uniform(0, 1.5, (6000, 2)), np.zeros(6000)].astype(np.float32)
+    io.write_ply(str(tmp_path / "plane.ply"), pts)
+    src = pipeline.PatchSource([str(tmp_path / "plane.ply")], voxel=0.01, keypoint_leaf=0.2,
+                               radius=0.3, n_points=64, min_points=50)
+
+    def unrotated(draw, jitter=0.0):
+        b = src.batch(3, 8, copies=True, occlusion=False, copy_draw=draw, copy_jitter=jitter)
+        back = np.einsum("bji,bnj->bni", b["rotations"], b["copies"])   # Rᵀ per copy
+        shared = np.mean([np.isclose(back[k][:, None], b["patches"][k][None], atol=1e-5).all(-1).any(1)
+                          for k in range(8)])
+        return back, shared
+
+    back, shared = unrotated("patch")
+    assert shared > 0.99 and np.abs(back[..., 2]).max() < 1e-5
+    back, shared = unrotated("support")
+    assert shared < 0.6 and np.abs(back[..., 2]).max() < 1e-5
+    back, _ = unrotated("support", jitter=0.01)
+    assert 0.007 < back[..., 2].std() < 0.013
+    with pytest.raises(ValueError, match="copy_draw"):
+        src.batch(0, 2, copies=True, copy_draw="scan")
+    with pytest.raises(ValueError, match="copy_jitter"):
+        src.batch(0, 2, copies=True, copy_jitter=-1.0)
