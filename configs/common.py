@@ -39,8 +39,9 @@ def base(size: str) -> ml_collections.ConfigDict:
         min_points=300,           # supports with fewer points are skipped
         val_fraction=0.1,         # keypoints held out for the validation loss
         occlusion=True,           # occlude the rotated copy (seed 3.1.5)
-        copy_draw="patch",        # the copy's points: 'patch' (the seed's) or 'support' (a
-                                  # second draw from the whole support, as a second scan)
+        copy_draw="patch",        # the copy's points: 'patch' (the seed's), 'support' (a
+                                  # second draw from the whole support) or 'scan' (another
+                                  # scan of the scene, by its ground truth: data/poses.py)
         copy_jitter=0.0,          # Gaussian noise on the copy (std, units of the radius)
     ))
     # Patches per jitted inference call (api.Bundle.orient/describe); memory grows with it and

@@ -14,7 +14,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import checks, paths
-from sphere_jax.data import augment, fusion, patches
+from sphere_jax.data import augment, fusion, patches, poses
 from sphere_jax.data.readers import io, ply, rgbd
 from sphere_jax.data.generators import synthetic
 
@@ -86,7 +86,8 @@ class PatchSource:
         keypoints group by group (e.g. as much real as synthetic data); without them every
         keypoint is equally likely."""
         self.radius, self.n_points, self.min_points = radius, n_points, min_points
-        self.seed, self.scan_paths = seed, list(scan_paths)
+        self.seed, self.scan_paths, self.voxel = seed, list(scan_paths), voxel
+        self._poses, self._partners = None, {}        # for copy_draw='scan', on first use
         self.clouds, self.trees, index = [], [], []
         for s, path in enumerate(scan_paths):
             pts = load_scan(path, voxel)
@@ -145,16 +146,61 @@ class PatchSource:
         :func:`rotated_copies`). ``copy_draw``: what a copy is made of — ``'patch'`` the
         patch's own points (the seed's), ``'support'`` a second, independent draw of N points
         from the keypoint's whole support, as a second scan samples the same surface
-        differently."""
+        differently, ``'scan'`` the same surface point in another scan of its scene (ground
+        truth poses, :mod:`~sphere_jax.data.poses`; a second draw where no other scan sees
+        it)."""
         checks.choice(copy_draw, "copy_draw", COPY_DRAWS)
         rng = np.random.default_rng([self.seed, step, 0 if split == "train" else 1])
         picks = self.draw(rng, batch_size, split)
         out = self._patches(picks, rng)
         result = {"patches": out}
         if copies:
-            base = out if copy_draw == "patch" else self._patches(picks, rng)
-            result.update(rotated_copies(base, rng, occlusion, copy_jitter))
+            turns = None
+            if copy_draw == "scan":
+                base, turns = self._other_scan_patches(picks, rng)
+            else:
+                base = out if copy_draw == "patch" else self._patches(picks, rng)
+            result.update(rotated_copies(base, rng, occlusion, copy_jitter, turns))
         return result
+
+    def _other_scan_patches(self, picks, rng):
+        """Patches ``[B, N, 3]`` of each picked point as another scan of its scene sees it, and
+        the rotations ``[B, 3, 3]`` from each patch's frame to that scan's (identity, and a
+        second draw from the keypoint's own support, where no other scan sees the point)."""
+        if self._poses is None:
+            self._poses = poses.scene_poses(self.scan_paths)
+        pose = self._poses[1]
+        out = self._patches(picks, rng)
+        turns = np.broadcast_to(np.eye(3, dtype=np.float32), (len(picks), 3, 3)).copy()
+        for b, (s, k) in enumerate(picks):
+            others = self._scans_seeing(s, k)
+            if not len(others):
+                continue
+            t = others[rng.integers(len(others))]
+            rel = np.linalg.inv(pose[t]) @ pose[s]
+            centre = self.clouds[s][k] @ rel[:3, :3].T + rel[:3, 3]
+            got = patches.patches_around(self.clouds[t], centre[None], self.radius,
+                                         self.n_points, rng, self.min_points, self.trees[t])
+            if got.valid[0]:
+                out[b], turns[b] = got.points[0] / self.radius, rel[:3, :3]
+        return out, turns
+
+    def _scans_seeing(self, s, k):
+        """The other scans of scan s's scene with a point within 2 voxels of its point k."""
+        if s not in self._partners:
+            scene, pose = self._poses
+            kps = np.unique(np.concatenate([v[v[:, 0] == s, 1] for v in self.splits.values()]))
+            others = [t for t in np.flatnonzero(scene == scene[s]) if t != s] \
+                if scene[s] >= 0 else []
+            seen = np.zeros((len(kps), len(others)), bool)
+            for c, t in enumerate(others):
+                rel = np.linalg.inv(pose[t]) @ pose[s]
+                moved = self.clouds[s][kps] @ rel[:3, :3].T + rel[:3, 3]
+                seen[:, c] = self.trees[t].query(moved, k=1)[0][:, 0] < 2 * self.voxel
+            self._partners[s] = (kps, np.asarray(others, np.int64), seen)
+        kps, others, seen = self._partners[s]
+        row = np.searchsorted(kps, k)
+        return others[seen[row]] if row < len(kps) and kps[row] == k else others[:0]
 
     def _patches(self, picks, rng):
         out = np.empty((len(picks), self.n_points, 3), np.float32)
@@ -166,13 +212,16 @@ class PatchSource:
         return out
 
 
-COPY_DRAWS = ("patch", "support")
+COPY_DRAWS = ("patch", "support", "scan")
 
 
-def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True, jitter=0.0):
+def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True, jitter=0.0,
+                   turns_Bx3x3=None):
     """Each unit patch rotated by a random rotation, occluded (seed 3.1.5), resampled to N
     points and, with ``jitter`` > 0, moved by Gaussian noise of that std (units of the radius):
-    ``{'copies': [B, N, 3], 'rotations': [B, 3, 3]}`` — Compass's training pairs."""
+    ``{'copies': [B, N, 3], 'rotations': [B, 3, 3]}`` — Compass's training pairs. With
+    ``turns_Bx3x3`` the patches are already turned by those rotations from the frame the
+    network's other input is in (copies from another scan), and ``'rotations'`` include them."""
     if not np.isfinite(jitter) or jitter < 0:
         raise checks.InputError("copy_jitter", "a finite number >= 0", repr(jitter))
     b, n, _ = patches_BxNx3.shape
@@ -185,6 +234,8 @@ def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True, jitt
         cop[k] = augment.resample(rotated, n, rng)
         if jitter:
             cop[k] = augment.jitter(cop[k], jitter, rng)
+    if turns_Bx3x3 is not None:
+        rots = rots @ turns_Bx3x3
     return {"copies": cop, "rotations": rots.astype(np.float32)}
 
 

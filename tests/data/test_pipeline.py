@@ -73,3 +73,50 @@ def test_copies_drawn_from_the_whole_support_are_a_second_sampling(tmp_path):
         src.batch(0, 2, copies=True, copy_draw="scan")
     with pytest.raises(ValueError, match="copy_jitter"):
         src.batch(0, 2, copies=True, copy_jitter=-1.0)
+
+
+def test_scene_poses_chain_the_ground_truth(tmp_path):
+    """Poses from a gt.log whose pairs form a chain 0-1, 1-2 (no 0-2 pair): fragment 2 is
+    reached through 1, so p_0 = P_2 p_2 with P_2 = T_01 T_12; a scan outside any scene gets -1."""
+    from sphere_jax.data import poses
+    from sphere_jax.data.readers import io, threedmatch
+    from sphere_jax.spherical import so3
+    scene = tmp_path / "room"
+    scene.mkdir()
+    for k in range(3):
+        io.write_ply(str(scene / f"cloud_bin_{k}.ply"), np.zeros((4, 3), np.float32))
+    io.write_ply(str(tmp_path / "loose.ply"), np.zeros((4, 3), np.float32))
+    t01, t12 = np.eye(4), np.eye(4)
+    t01[:3, :3], t01[:3, 3] = so3.euler_to_matrix_np(0.3, 0.5, 0.7), [1, 0, 0]
+    t12[:3, :3], t12[:3, 3] = so3.euler_to_matrix_np(-0.2, 1.1, 0.4), [0, 2, 0]
+    threedmatch.write_gt_log(str(scene / "gt.log"), {(0, 1): t01, (1, 2): t12}, 3)
+    paths_ = [str(scene / f"cloud_bin_{k}.ply") for k in (2, 0, 1)] + [str(tmp_path / "loose.ply")]
+    ids, pose = poses.scene_poses(paths_)
+    assert ids.tolist() == [0, 0, 0, -1] and np.isnan(pose[3]).all()
+    np.testing.assert_allclose(pose[1], np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(pose[2], t01, atol=1e-12)
+    np.testing.assert_allclose(pose[0], t01 @ t12, atol=1e-12)
+
+
+def test_scan_copies_are_the_same_surface_seen_by_another_scan():
+    """copy_draw='scan' on the embedded rooms (ground-truth poses): almost no copy shares a
+    point with its patch (it comes from another fragment), yet turned back by the batch's
+    rotation it lies on the patch's surface as closely as a second draw from the same scan
+    does (mean distance to the patch's nearest point, in units of the radius)."""
+    from sklearn.neighbors import KDTree
+    src = pipeline.PatchSource(pipeline.scan_paths("embedded"), 0.02, 0.1, 0.3, 256, 300)
+
+    def gap_and_shared(draw):
+        b = src.batch(0, 16, copies=True, occlusion=False, copy_draw=draw)
+        back = np.einsum("bji,bnj->bni", b["rotations"], b["copies"])
+        gap = np.median([KDTree(p).query(q, k=1)[0].mean() for p, q in zip(b["patches"], back)])
+        shared = np.mean([np.isclose(q[:, None], p[None], atol=1e-5).all(-1).any(1).mean()
+                          for p, q in zip(b["patches"], back)])
+        return gap, shared
+
+    support_gap, support_shared = gap_and_shared("support")
+    scan_gap, scan_shared = gap_and_shared("scan")
+    print(f"support: gap {support_gap:.3f}, shared {support_shared:.2f}; "
+          f"scan: gap {scan_gap:.3f}, shared {scan_shared:.2f}")
+    assert support_shared > 0.2 and scan_shared < 0.05
+    assert scan_gap < 1.5 * support_gap and scan_gap < 0.1
