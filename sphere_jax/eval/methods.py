@@ -14,9 +14,10 @@ the resampled unit patches they were trained on.
 ``lead_compass``   the same, turned by the Compass LRF (needs a compass bundle)
 ``lead_pn``        LEAD-PN (PointNet on FLARE-oriented patches)
 ``sound``          SOUND, self-oriented
-``lead_gt``        not a method but a diagnostic (registration only): LEAD turned by the ground
-                   truth, so that corresponding patches share one canonical pose exactly
-                   (:class:`GroundTruthTurned`) — how far a perfectly repeatable LRF would take it
+``lead_gt``        not methods but diagnostics (registration only): LEAD and SHOT in frames read
+``shot_gt``        from each pair's ground truth, so that corresponding patches share one pose
+                   exactly (:class:`GroundTruthFrames`) — how far a perfectly repeatable LRF
+                   would take each
 =================  ==============================================================================
 
 LRFs: ``flare`` (:func:`~sphere_jax.models.flare.flare` on the model's resampled patches, as LEAD
@@ -30,8 +31,6 @@ import dataclasses
 import warnings
 from typing import Callable
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from sphere_jax import api
@@ -39,11 +38,10 @@ from sphere_jax import bundle as bundle_files
 from sphere_jax.eval import descriptors, lrfs
 from sphere_jax.eval.neighbourhood import radius_neighbourhoods
 from sphere_jax.eval.scenes import Fragment
-from sphere_jax.models import lead as lead_model
 
 DESCRIPTORS = ("fpfh", "shot", "spin", "usc", "lead", "lead_compass", "lead_pn", "sound")
 # Diagnostics that read each pair's ground truth: the registration benchmark only.
-GROUND_TRUTH = ("lead_gt",)
+GROUND_TRUTH = ("lead_gt", "shot_gt")
 LRFS = ("flare", "shot", "toldi", "3dsn", "compass", "sound")
 # Which bundle each learned method needs.
 BUNDLE_OF = {"lead": ("lead",), "lead_compass": ("lead", "compass"), "lead_pn": ("lead_pn",),
@@ -108,48 +106,43 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
 
 
 @dataclasses.dataclass(frozen=True)
-class GroundTruthTurned:
-    """A descriptor that needs each pair's ground truth: ``describe(fragment) -> [K, D]`` as
-    for a method, and ``turn(desc_j_KxD, t_4x4)``, which the benchmark applies to the second
-    scan of each pair (p_i = T p_j) before matching."""
-    describe: Callable
-    turn: Callable
-
-    def __call__(self, fragment):
-        return self.describe(fragment)
-
-
-@jax.jit
-def _turn_maps(maps_KxD, rot_3x3):
-    b2 = round(maps_KxD.shape[1] ** (1 / 3))
-    frames = jnp.broadcast_to(rot_3x3.T, (maps_KxD.shape[0], 3, 3))
-    return lead_model.canonical_descriptors(maps_KxD.reshape(-1, b2, b2, b2), frames)
+class GroundTruthFrames:
+    """A descriptor computed in frames read from each pair's ground truth (p_i = T p_j, R its
+    rotation): ``describe_pair(fragment_i, fragment_j, t_4x4) -> (desc_i, desc_j)`` with every
+    keypoint of scan i in the identity frame and every keypoint of scan j in Rᵀ, so that both
+    sides of a correct correspondence share one pose exactly — the frame a perfectly
+    repeatable LRF would give. It reads the ground truth: an upper bound that separates a
+    descriptor's quality from its LRF's, never a method to compare."""
+    describe_pair: Callable
 
 
-def ground_truth_turned(name, radius, bundles=None, chunk=None) -> GroundTruthTurned:
-    """``lead_gt``: LEAD's SO(3) maps left as they are (identity frames) on scan i of a pair and
-    turned by the pair's rotation R on scan j. LEAD's map rotates with its patch, so a patch of
-    scan j seen from scan i has the map of scan j rotated by R; turning it back by R gives both
-    sides of every correct correspondence the same pose — the frame a perfectly repeatable LRF
-    would give. Reads the ground truth: an upper bound that separates the descriptor's quality
-    from its LRF's, never a method to compare."""
+def ground_truth_frames(name, radius, bundles=None, chunk=None) -> GroundTruthFrames:
+    """``lead_gt`` (LEAD's SO(3) maps turned to those frames) or ``shot_gt`` (SHOT's
+    histograms binned in them)."""
     bundles = bundles or {}
     if name not in GROUND_TRUTH:
         raise ValueError(f"unknown ground-truth diagnostic {name!r}; choose from "
                          f"{', '.join(GROUND_TRUTH)}")
     if bundles_needed([name], bundles):
         raise ValueError(f"diagnostic {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
-    lead = _bundle(bundles["lead"])
 
-    def describe(f):
-        eye = np.broadcast_to(np.eye(3, dtype=np.float32), (len(f.keypoints), 3, 3))
-        return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                     frames=eye, on_invalid="mask"), 0)
+    def frames(f, rot_3x3):
+        return np.broadcast_to(np.asarray(rot_3x3, np.float32), (len(f.keypoints), 3, 3))
 
-    def turn(desc_j_KxD, t_4x4):
-        return np.asarray(_turn_maps(jnp.asarray(desc_j_KxD, jnp.float32),
-                                     jnp.asarray(np.asarray(t_4x4)[:3, :3], jnp.float32)))
-    return GroundTruthTurned(describe, turn)
+    if name == "shot_gt":
+        def describe(f, rot_3x3):
+            return descriptors.shot(_neighbourhoods(f, f.keypoints, radius), f.normals,
+                                    frames(f, rot_3x3))
+    else:
+        lead = _bundle(bundles["lead"])
+
+        def describe(f, rot_3x3):
+            return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
+                                         frames=frames(f, rot_3x3), on_invalid="mask"), 0)
+
+    def describe_pair(f_i, f_j, t_4x4):
+        return describe(f_i, np.eye(3)), describe(f_j, np.asarray(t_4x4)[:3, :3].T)
+    return GroundTruthFrames(describe_pair)
 
 
 def lrf(name, radius, bundles=None, chunk=None):

@@ -137,29 +137,42 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                    prepare_kwargs=None, tau1=TAU1, tau2=TAU2, ransac_distance=0.05,
                    ransac_iterations=50_000, seed=0, progress=True) -> list[SceneResult]:
     """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``, or a
-    :class:`~sphere_jax.eval.methods.GroundTruthTurned`) on every pair of ``pair_set``, on the
+    :class:`~sphere_jax.eval.methods.GroundTruthFrames`) on every pair of ``pair_set``, on the
     same prepared fragments and keypoints."""
     frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
-    n_kp = sum(len(f.keypoints) for f in frags.values())
     results = []
     for name, describe in describers.items():
         start = time.perf_counter()
-        desc = {k: np.asarray(describe(f), np.float32)
-                for k, f in tqdm(frags.items(), desc=f"{pair_set.name}: {name}",
-                                 disable=not progress)}
-        ms = 1000.0 * (time.perf_counter() - start) / max(n_kp, 1)
-        for k, d in desc.items():
-            if d.shape[0] != len(frags[k].keypoints) or not np.all(np.isfinite(d)):
-                raise ValueError(f"method {name!r} returned {d.shape} descriptors with "
-                                 f"non-finite values or a wrong count for scan {k}")
-        turn = getattr(describe, "turn", None)        # a ground-truth diagnostic
-        rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], desc[i],
-                                               desc[j] if turn is None else turn(desc[j], t),
-                                               t, tau1, ransac_distance, ransac_iterations,
-                                               seed))
+        inputs, n_described = _pair_descriptors(name, describe, frags, pair_set, progress)
+        ms = 1000.0 * (time.perf_counter() - start) / max(n_described, 1)
+        rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], *inputs[(i, j)], t, tau1,
+                                               ransac_distance, ransac_iterations, seed))
                 for (i, j), t in pair_set.transforms.items()]
         results.append(SceneResult(name, pair_set.name, rows, summarise(rows, tau1, tau2), ms))
     return results
+
+
+def _pair_descriptors(name, describe, frags, pair_set, progress):
+    """``({(i, j): (desc_i, desc_j)}, keypoints described)``: each scan described once, or,
+    for a ground-truth diagnostic (``describe.describe_pair``), both scans of every pair in
+    that pair's frames. Wrong counts and non-finite values are refused, naming the method."""
+    describe_pair = getattr(describe, "describe_pair", None)
+    bar = lambda items: tqdm(items, desc=f"{pair_set.name}: {name}", disable=not progress)
+    if describe_pair is None:
+        desc = {k: np.asarray(describe(f), np.float32) for k, f in bar(frags.items())}
+        inputs = {(i, j): (desc[i], desc[j]) for i, j in pair_set.transforms}
+        n_described = sum(len(f.keypoints) for f in frags.values())
+    else:
+        inputs = {(i, j): tuple(np.asarray(d, np.float32)
+                                for d in describe_pair(frags[i], frags[j], t))
+                  for (i, j), t in bar(pair_set.transforms.items())}
+        n_described = sum(len(frags[i].keypoints) + len(frags[j].keypoints) for i, j in inputs)
+    for (i, j), pair in inputs.items():
+        for k, d in zip((i, j), pair):
+            if d.shape[0] != len(frags[k].keypoints) or not np.all(np.isfinite(d)):
+                raise ValueError(f"method {name!r} returned {d.shape} descriptors with "
+                                 f"non-finite values or a wrong count for scan {k}")
+    return inputs, n_described
 
 
 def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
@@ -181,7 +194,7 @@ def run(config, workdir, progress=True):
     bundles = method_lib.bundle_paths(config)
     names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS +
                                       method_lib.GROUND_TRUTH, bundles)
-    describers = {m: method_lib.ground_truth_turned(m, config.data.radius, bundles, config.chunk)
+    describers = {m: method_lib.ground_truth_frames(m, config.data.radius, bundles, config.chunk)
                   if m in method_lib.GROUND_TRUTH else
                   method_lib.descriptor(m, config.data.radius, bundles, config.fpfh_radius,
                                         config.chunk) for m in names}

@@ -16,12 +16,12 @@ def _read_csv(path):
 def test_registration_tiny_writes_results(tmp_path, shared):
     c = eval_registration.get_config("tiny")
     c.data.root = os.path.join(shared, "3dmatch", "7-scenes-redkitchen")
-    c.methods = "fpfh,shot,lead,lead_gt"
+    c.methods = "fpfh,shot,lead,lead_gt,shot_gt"
     rows, md = tasks.run(c, str(tmp_path), progress=False)
     table = _read_csv(tmp_path / "results.csv")
     assert tuple(table[0]) == report.REGISTRATION_COLUMNS
     means = {r["method"]: r for r in table if r["scene"] == "mean"}
-    assert list(means) == ["fpfh", "shot", "lead", "lead_gt"]
+    assert list(means) == ["fpfh", "shot", "lead", "lead_gt", "shot_gt"]
     print({m: r["inlier_ratio"] for m, r in means.items()})
     assert {r["scene"] for r in table} == {"7-scenes-redkitchen", "mean"}
     assert all(int(r["pairs"]) == 2 for r in table)
