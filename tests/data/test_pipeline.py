@@ -70,7 +70,7 @@ def test_copies_drawn_from_the_whole_support_are_a_second_sampling(tmp_path):
     back, _ = unrotated("support", jitter=0.01)
     assert 0.007 < back[..., 2].std() < 0.013
     with pytest.raises(ValueError, match="copy_draw"):
-        src.batch(0, 2, copies=True, copy_draw="scan")
+        src.batch(0, 2, copies=True, copy_draw="mesh")
     with pytest.raises(ValueError, match="copy_jitter"):
         src.batch(0, 2, copies=True, copy_jitter=-1.0)
 
