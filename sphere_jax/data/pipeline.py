@@ -177,8 +177,8 @@ class PatchSource:
             if not len(others):
                 continue
             t = others[rng.integers(len(others))]
-            rel = np.linalg.inv(pose[t]) @ pose[s]
-            centre = self.clouds[s][k] @ rel[:3, :3].T + rel[:3, 3]
+            rel = poses.relative(pose, s, t)
+            centre = poses.transform(self.clouds[s][k], rel)
             got = patches.patches_around(self.clouds[t], centre[None], self.radius,
                                          self.n_points, rng, self.min_points, self.trees[t])
             if got.valid[0]:
@@ -194,8 +194,7 @@ class PatchSource:
                 if scene[s] >= 0 else []
             seen = np.zeros((len(kps), len(others)), bool)
             for c, t in enumerate(others):
-                rel = np.linalg.inv(pose[t]) @ pose[s]
-                moved = self.clouds[s][kps] @ rel[:3, :3].T + rel[:3, 3]
+                moved = poses.transform(self.clouds[s][kps], poses.relative(pose, s, t))
                 seen[:, c] = self.trees[t].query(moved, k=1)[0][:, 0] < 2 * self.voxel
             self._partners[s] = (kps, np.asarray(others, np.int64), seen)
         kps, others, seen = self._partners[s]

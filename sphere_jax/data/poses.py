@@ -1,5 +1,6 @@
-"""Poses of 3DMatch-layout training scans from their ground truth, for Compass's cross-scan
-copies (``data.copy_draw='scan'``).
+"""Rigid transforms of scans: points moved by a 4×4 transform, and the poses of 3DMatch-layout
+training scans from their ground truth, for Compass's cross-scan copies
+(``data.copy_draw='scan'``).
 
 A scene folder of ``cloud_bin_K.ply`` with a ``gt.log`` (``p_i = T_ij p_j``, beside the clouds or
 in ``<scene>-evaluation/``) gives each fragment joined to the scene's first one by ground-truth
@@ -17,6 +18,16 @@ import numpy as np
 from sphere_jax.data.readers import threedmatch
 
 _FRAGMENT = re.compile(r"cloud_bin_(\d+)\.ply")
+
+
+def transform(points, t):
+    """``points [N, 3]`` mapped by the 4×4 rigid transform ``t``."""
+    return points @ t[:3, :3].T + t[:3, 3]
+
+
+def relative(poses_Sx4x4, s, t):
+    """The 4×4 transform taking scan ``s``'s points into scan ``t``'s frame."""
+    return np.linalg.inv(poses_Sx4x4[t]) @ poses_Sx4x4[s]
 
 
 def _gt_log(folder):

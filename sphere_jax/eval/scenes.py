@@ -21,6 +21,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax import checks
 from sphere_jax.data import augment, patches, pipeline
+from sphere_jax.data.poses import transform
 from sphere_jax.data.readers import stanford, threedmatch
 from sphere_jax.eval.neighbourhood import estimate_normals
 
@@ -49,11 +50,6 @@ class Fragment:
     normals: np.ndarray
     keypoints: np.ndarray
     tree: KDTree
-
-
-def transform(points, t):
-    """``points [N, 3]`` mapped by the 4×4 rigid transform ``t``."""
-    return points @ t[:3, :3].T + t[:3, 3]
 
 
 def fragment_scene(scene: threedmatch.FragmentScene) -> PairSet:
