@@ -72,8 +72,8 @@ def get_batch(config, source, step, split="train"):
     spec, bs = models.spec(config.model), config.train.batch_size
     if not isinstance(source, pipeline.ShapeSource):
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
-                            copy_draw=config.data.get("copy_draw", "patch"),
-                            copy_jitter=config.data.get("copy_jitter", 0.0))
+                            copy_draw=config.data.get("copy_draw", DATA_ADDED["copy_draw"]),
+                            copy_jitter=config.data.get("copy_jitter", DATA_ADDED["copy_jitter"]))
     split = "test" if split == "val" else split
     if not spec.labelled:                                       # Compass on whole shapes
         return source.batch(step, bs, split, copies=spec.copies,
