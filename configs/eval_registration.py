@@ -11,8 +11,9 @@ Arguments: '' (5000 keypoints, every pair), 'quick' (2500 keypoints, 8 pairs per
 README's main job, with the shipped LEAD and LEAD-PN), 'tiny' (tests). Expected on the real
 redkitchen pairs: every method but FPFH matches all pairs, the shipped 'mid' LEAD-PN and LEAD
 with 3.4x and 3.9-4.1x FPFH's inlier ratio (LEAD (Compass) 0.320), below SHOT's (0.368) and
-USC's, LEAD (Compass) with the most correct matches per pair (338) — see the README's results. ``lead_gt`` and ``shot_gt`` add the
-ground-truth-frame diagnostics (upper bounds, not methods).
+USC's, LEAD (Compass) with the most correct matches per pair (338) — see the README's results.
+``lead_gt`` and ``shot_gt`` add the ground-truth-frame diagnostics (upper bounds, not
+methods).
 """
 from configs import eval_common
 
