@@ -14,7 +14,7 @@ BUDGET_S = 300                      # per notebook on the 2-core machine
 def test_notebook_runs(path, monkeypatch):
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")
-    monkeypatch.setenv("NOTEBOOK_TRAIN_STEPS", "20")          # the training demo, shortened
+    monkeypatch.setenv("NOTEBOOK_TRAIN_STEPS", "100")   # the training demo, shortened
     monkeypatch.setenv("MPLBACKEND", "Agg")
     nb = nbformat.read(path, as_version=4)
     start = time.perf_counter()
