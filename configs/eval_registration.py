@@ -10,8 +10,8 @@ correct matches, registration recall, RRE, RTE, ms per keypoint) and fmr_vs_tau2
 Arguments: '' (5000 keypoints, every pair), 'quick' (2500 keypoints, 8 pairs per scene: the
 README's main job, with the shipped LEAD and LEAD-PN), 'tiny' (tests). Expected on the real
 redkitchen pairs: every method but FPFH matches all pairs, the shipped 'mid' LEAD-PN and LEAD
-with 3.4x and 3.9-4.1x FPFH's inlier ratio (LEAD (Compass) 0.320), below SHOT's (0.368) and
-USC's, LEAD (Compass) with the most correct matches per pair (338) — see the README's results.
+with 3.4x and 4.1-4.4x FPFH's inlier ratio (LEAD (Compass) 0.342), below SHOT's (0.368) and
+USC's, LEAD (Compass) with the most correct matches per pair (344) — see the README's results.
 ``lead_gt`` and ``shot_gt`` add the ground-truth-frame diagnostics (upper bounds, not
 methods).
 """
