@@ -34,7 +34,7 @@ def main(argv=None):
     parser.add_argument("source")
     parser.add_argument("target")
     parser.add_argument("--method", default=align.DEFAULT_METHOD,
-                        choices=align.LEARNED + align.HANDCRAFTED)
+                        choices=align.LEARNED + align.HANDCRAFTED + align.VOTED)
     parser.add_argument("--voxel", type=_scale, default="auto")
     parser.add_argument("--radius", type=_scale, default="auto")
     parser.add_argument("--keypoints", type=int, default=5000)

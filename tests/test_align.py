@@ -35,6 +35,15 @@ def test_register_real_fragments_at_any_scale(pair, scale):
     assert result.inliers >= 30 and result.fitness > 0.3
 
 
+def test_register_with_the_pair_vote(pair):
+    """LEAD matched in Compass's frames, then again in the frame the matches voted."""
+    (src, dst), t_gt = pair
+    result = sphere_jax.register(src, dst, method="lead_vote", n_keypoints=1000)
+    rre, rte = registration.rre_rte(result.transform, t_gt)
+    assert rre < 5.0 and rte < 0.10, (rre, rte, result.summary())
+    assert result.inliers >= 30 and result.method == "lead_vote"
+
+
 def test_auto_scale_follows_extent_and_spacing():
     rng = np.random.default_rng(0)
     wall = np.c_[rng.uniform(0, 2.1, 200_000), rng.uniform(0, 2.1, 200_000), np.zeros(200_000)]

@@ -18,6 +18,9 @@ the resampled unit patches they were trained on.
 ``shot_gt``        from each pair's ground truth, so that corresponding patches share one pose
                    exactly (:class:`GroundTruthFrames`) — how far a perfectly repeatable LRF
                    would take each
+``lead_vote``      the pair vote (:mod:`voting`): LEAD matched once in Compass's frames, the
+``shot_vote``      pair's rotation voted from the matches' frames, both scans described again
+                   in one frame each (SHOT likewise in its LRF; registration only)
 =================  ==============================================================================
 
 LRFs: ``flare`` (:func:`~sphere_jax.models.flare.flare` on the model's resampled patches, as LEAD
@@ -42,10 +45,13 @@ from sphere_jax.eval.scenes import Fragment
 DESCRIPTORS = ("fpfh", "shot", "spin", "usc", "lead", "lead_compass", "lead_pn", "sound")
 # Diagnostics that read each pair's ground truth: the registration benchmark only.
 GROUND_TRUTH = ("lead_gt", "shot_gt")
+# Described per pair, in frames voted from a first pass of matches: registration only.
+VOTED = ("lead_vote", "shot_vote")
 LRFS = ("flare", "shot", "toldi", "3dsn", "compass", "sound")
 # Which bundle each learned method needs.
 BUNDLE_OF = {"lead": ("lead",), "lead_compass": ("lead", "compass"), "lead_pn": ("lead_pn",),
-             "sound": ("sound",), "compass": ("compass",), "lead_gt": ("lead",)}
+             "sound": ("sound",), "compass": ("compass",), "lead_gt": ("lead",),
+             "lead_vote": ("lead", "compass")}
 FLARE_POINTS = 1225
 
 

@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax.data import o3d_convert
 from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import processes, report
+from sphere_jax.eval import processes, report, voting
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.spherical import so3
 
@@ -136,29 +136,50 @@ class SceneResult:
 def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                    prepare_kwargs=None, tau1=TAU1, tau2=TAU2, ransac_distance=0.05,
                    ransac_iterations=50_000, seed=0, progress=True) -> list[SceneResult]:
-    """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``, or a
-    :class:`~sphere_jax.eval.methods.GroundTruthFrames`) on every pair of ``pair_set``, on the
-    same prepared fragments and keypoints."""
+    """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``, a
+    :class:`~sphere_jax.eval.methods.GroundTruthFrames` or a
+    :class:`~sphere_jax.eval.voting.VotedFrames`) on every pair of ``pair_set``, on the same
+    prepared fragments and keypoints. A voted method's rows add ``vote_rre_deg`` (the voted
+    rotation's error), ``vote_support`` and ``vote_proposals`` (the first-pass matches that
+    agreed with it, and all of them)."""
     frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
     results = []
     for name, describe in describers.items():
         start = time.perf_counter()
-        inputs, n_described = _pair_descriptors(name, describe, frags, pair_set, progress)
+        inputs, n_described, votes = _pair_descriptors(name, describe, frags, pair_set,
+                                                       progress)
         ms = 1000.0 * (time.perf_counter() - start) / max(n_described, 1)
         rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], *inputs[(i, j)], t, tau1,
-                                               ransac_distance, ransac_iterations, seed))
+                                               ransac_distance, ransac_iterations, seed),
+                     **_vote_row(votes.get((i, j)), t))
                 for (i, j), t in pair_set.transforms.items()]
         results.append(SceneResult(name, pair_set.name, rows, summarise(rows, tau1, tau2), ms))
     return results
 
 
+def _vote_row(vote, t_gt):
+    if vote is None:
+        return {}
+    return {"vote_rre_deg": float(np.degrees(so3.geodesic_distance_np(vote.rotation,
+                                                                       t_gt[:3, :3]))),
+            "vote_support": vote.support, "vote_proposals": vote.proposals}
+
+
 def _pair_descriptors(name, describe, frags, pair_set, progress):
-    """``({(i, j): (desc_i, desc_j)}, keypoints described)``: each scan described once, or,
-    for a ground-truth diagnostic (``describe.describe_pair``), both scans of every pair in
-    that pair's frames. Wrong counts and non-finite values are refused, naming the method."""
+    """``({(i, j): (desc_i, desc_j)}, keypoints described, {(i, j): Vote})``: each scan
+    described once, or, for a ground-truth diagnostic (``describe.describe_pair``), both scans
+    of every pair in that pair's frames, or, for a voted method, in the frames its first pass
+    voted. Wrong counts and non-finite values are refused, naming the method."""
     describe_pair = getattr(describe, "describe_pair", None)
     bar = lambda items: tqdm(items, desc=f"{pair_set.name}: {name}", disable=not progress)
-    if describe_pair is None:
+    votes = {}
+    if isinstance(describe, voting.VotedFrames):
+        inputs, votes = describe.describe_pairs(frags, pair_set.transforms, mutual_matches,
+                                                bar)
+        inputs = {p: tuple(np.asarray(d, np.float32) for d in pair) for p, pair in
+                  inputs.items()}
+        n_described = sum(len(f.keypoints) for f in frags.values())
+    elif describe_pair is None:
         desc = {k: np.asarray(describe(f), np.float32) for k, f in bar(frags.items())}
         inputs = {(i, j): (desc[i], desc[j]) for i, j in pair_set.transforms}
         n_described = sum(len(f.keypoints) for f in frags.values())
@@ -172,7 +193,23 @@ def _pair_descriptors(name, describe, frags, pair_set, progress):
             if d.shape[0] != len(frags[k].keypoints) or not np.all(np.isfinite(d)):
                 raise ValueError(f"method {name!r} returned {d.shape} descriptors with "
                                  f"non-finite values or a wrong count for scan {k}")
-    return inputs, n_described
+    return inputs, n_described, votes
+
+
+VOTE_COLUMNS = ("method", "scene", "pair", "vote_rre_deg", "vote_support", "vote_proposals")
+
+
+def _write_votes(workdir, results, variant):
+    """votes.{csv,md}: per pair, how far each voted method's rotation is from the truth."""
+    rows = [dict(method=r.method, scene=r.scene, pair=f"{p['pair'][0]}-{p['pair'][1]}",
+                 **{k: p[k] for k in VOTE_COLUMNS[3:]})
+            for r in results for p in r.pairs if "vote_rre_deg" in p]
+    if rows:
+        report.write(workdir, "votes", rows, VOTE_COLUMNS,
+                     f"# Pair votes{variant}\n\nThe voted rotation's error against the "
+                     f"ground truth (°), and how many of the first pass's proposals (one per "
+                     f"match) agreed with it.\n\n"
+                     + report.table(rows, VOTE_COLUMNS, fmt="{:.2f}") + "\n")
 
 
 def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
@@ -187,17 +224,23 @@ def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
 
 # ---- the task ------------------------------------------------------------------------------------
 
+def _describer(name, config, bundles):
+    radius, chunk = config.data.radius, config.chunk
+    if name in method_lib.GROUND_TRUTH:
+        return method_lib.ground_truth_frames(name, radius, bundles, chunk)
+    if name in method_lib.VOTED:
+        return voting.voted_frames(name, radius, bundles, chunk)
+    return method_lib.descriptor(name, radius, bundles, config.fpfh_radius, chunk)
+
+
 def run(config, workdir, progress=True):
     """Descriptor benchmark: returns ``(rows, markdown)``; writes results.{csv,md} and
     fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the
     processes and process 0 writes the tables (:mod:`processes`)."""
     bundles = method_lib.bundle_paths(config)
-    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS +
+    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS + method_lib.VOTED +
                                       method_lib.GROUND_TRUTH, bundles)
-    describers = {m: method_lib.ground_truth_frames(m, config.data.radius, bundles, config.chunk)
-                  if m in method_lib.GROUND_TRUTH else
-                  method_lib.descriptor(m, config.data.radius, bundles, config.fpfh_radius,
-                                        config.chunk) for m in names}
+    describers = {m: _describer(m, config, bundles) for m in names}
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,
                                config.tau2, config.ransac_distance, config.ransac_iterations,
                                config.seed, progress))
@@ -212,6 +255,7 @@ def run(config, workdir, progress=True):
     md = report.write_tables(workdir, rows, report.REGISTRATION_COLUMNS,
                              report.REGISTRATION_TABLES, "results",
                              f"Registration benchmark{variant}")
+    _write_votes(workdir, results, variant)
     curve = fmr_curve(results, config.tau2_curve, config.tau1)
     report.plot_fmr_curve(curve, config.tau2_curve, os.path.join(workdir, "fmr_vs_tau2.png"),
                           f"Feature-match recall vs τ2{variant}")

@@ -38,3 +38,18 @@ def rotated_copy(frag: scenes.Fragment, rot_33) -> scenes.Fragment:
     pts = (frag.points @ rot_33.T).astype(np.float32)
     return scenes.Fragment(frag.key, pts, (frag.normals @ rot_33.T).astype(np.float32),
                            frag.keypoints, KDTree(pts))
+
+
+def moved_pair(n_keypoints=48):
+    """A prepared scan f and g, the same scan moved by T⁻¹ (so p_f = T p_g, as for a benchmark
+    pair (f, g)), and T: corresponding keypoints share their index."""
+    from sphere_jax.spherical import so3
+    pair_set = kitchen_or_embedded()
+    f = scenes.prepare(pair_set, pair_set.pairs[0][0], n_keypoints=n_keypoints, seed=1)
+    t = np.eye(4)
+    t[:3, :3] = so3.euler_to_matrix_np(0.9, 1.3, -2.1)
+    t[:3, 3] = [0.4, -0.2, 1.0]
+    moved = scenes.transform(f.points, np.linalg.inv(t)).astype(np.float32)
+    g = scenes.Fragment(f.key, moved, (f.normals @ t[:3, :3]).astype(np.float32), f.keypoints,
+                        KDTree(moved))
+    return f, g, t

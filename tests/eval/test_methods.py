@@ -1,11 +1,9 @@
 """The benchmark's method table: the ground-truth diagnostics describe a pair in one pose."""
 import numpy as np
 import pytest
-from sklearn.neighbors import KDTree
 
 from sphere_jax import api, paths
-from sphere_jax.eval import methods, scenes
-from sphere_jax.spherical import so3
+from sphere_jax.eval import methods
 from tests.eval import _fixtures
 
 BUNDLES = {"lead": paths.shipped_bundle("lead")}
@@ -17,17 +15,7 @@ def _relative(a, b):
 
 @pytest.fixture(scope="module")
 def moved_pair():
-    """A scan f and g, the same scan moved by T⁻¹ (so p_f = T p_g, as for a benchmark pair
-    (f, g)), and T."""
-    pair_set = _fixtures.kitchen_or_embedded()
-    f = scenes.prepare(pair_set, pair_set.pairs[0][0], n_keypoints=48, seed=1)
-    t = np.eye(4)
-    t[:3, :3] = so3.euler_to_matrix_np(0.9, 1.3, -2.1)
-    t[:3, 3] = [0.4, -0.2, 1.0]
-    moved = scenes.transform(f.points, np.linalg.inv(t)).astype(np.float32)
-    g = scenes.Fragment(f.key, moved, (f.normals @ t[:3, :3]).astype(np.float32), f.keypoints,
-                        KDTree(moved))
-    return f, g, t
+    return _fixtures.moved_pair()
 
 
 def test_shot_gt_bins_both_scans_of_a_pair_alike(moved_pair):

@@ -1,0 +1,156 @@
+"""The pair vote: the mode of the matches' rotations, against a loop reference, and the voted
+methods on a scan and its moved copy (the rotation recovered, the pair described alike)."""
+import numpy as np
+import pytest
+from sklearn.neighbors import KDTree
+
+from sphere_jax import paths
+from sphere_jax.eval import registration, scenes, voting
+from sphere_jax.spherical import so3
+from tests.eval import _fixtures
+
+BUNDLES = {"lead": paths.shipped_bundle("lead"), "compass": paths.shipped_bundle("compass")}
+
+
+def _random_rotations(rng, n):
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                     2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+                    axis=1).reshape(n, 3, 3)
+
+
+def _small_turns(rng, n, max_deg):
+    """Rotations about random axes by angles uniform in [0, max_deg]."""
+    axis = rng.normal(size=(n, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    angle = np.radians(rng.uniform(0, max_deg, n))
+    k = np.zeros((n, 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    k -= np.swapaxes(k, 1, 2)
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * k @ k
+
+
+def _frame_pairs(rng, truth, n_in, n_out, noise_deg):
+    """First-pass frames: n_in matches whose frames obey F_a = R F_b (each turned by up to
+    noise_deg), n_out whose frames are unrelated."""
+    fb = _random_rotations(rng, n_in + n_out)
+    fa = np.concatenate([_small_turns(rng, n_in, noise_deg) @ truth @ fb[:n_in],
+                         _random_rotations(rng, n_out)])
+    return fa, fb
+
+
+def test_vote_finds_the_rotation_of_the_agreeing_matches():
+    """70 % of the proposals are outliers, the rest within 4° of the truth: the vote lands
+    within a degree of it and its support counts the agreeing matches."""
+    rng = np.random.default_rng(0)
+    truth = _random_rotations(rng, 1)[0]
+    fa, fb = _frame_pairs(rng, truth, 300, 700, noise_deg=4.0)
+    vote = voting.vote_rotation(fa, fb, tol_deg=10.0, rows=128)
+    err = np.degrees(so3.geodesic_distance_np(vote.rotation, truth))
+    print(f"error {err:.2f}°, support {vote.support} of {vote.proposals}")
+    assert err < 1.0 and vote.proposals == 1000
+    assert 300 <= vote.support < 310          # the inliers, and the few outliers near them
+    assert np.allclose(vote.rotation @ vote.rotation.T, np.eye(3), atol=1e-9)
+    assert np.linalg.det(vote.rotation) == pytest.approx(1.0)
+
+
+def test_vote_counts_match_a_loop_over_geodesic_distances():
+    rng = np.random.default_rng(1)
+    truth = _random_rotations(rng, 1)[0]
+    fa, fb = _frame_pairs(rng, truth, 40, 60, noise_deg=12.0)
+    proposals = np.einsum("mij,mkj->mik", fa, fb)
+    counts = [sum(so3.geodesic_distance_np(p, q) < np.radians(10.0) for q in proposals)
+              for p in proposals]
+    best = proposals[int(np.argmax(counts))]
+    near = [q for q in proposals if so3.geodesic_distance_np(best, q) < np.radians(10.0)]
+    mean = voting.project_to_rotation(np.mean(near, axis=0))
+    # The fast vote refines twice from the same start: within a degree of one refinement.
+    vote = voting.vote_rotation(fa, fb, tol_deg=10.0, rows=7)
+    assert np.degrees(so3.geodesic_distance_np(vote.rotation, mean)) < 1.0
+    assert max(counts) >= 20
+
+
+def test_vote_skips_frames_it_cannot_use_and_refuses_bad_shapes():
+    rng = np.random.default_rng(2)
+    truth = _random_rotations(rng, 1)[0]
+    fa, fb = _frame_pairs(rng, truth, 20, 10, noise_deg=2.0)
+    fa[:5] = np.nan                             # keypoints their LRF could not orient
+    vote = voting.vote_rotation(fa, fb)
+    assert vote.proposals == 25 and vote.support == 15
+    assert np.degrees(so3.geodesic_distance_np(vote.rotation, truth)) < 1.0
+    none = voting.vote_rotation(np.full((3, 3, 3), np.nan), np.full((3, 3, 3), np.nan))
+    assert none.support == 0 and np.array_equal(none.rotation, np.eye(3))
+    with pytest.raises(ValueError, match="frames_a and frames_b"):
+        voting.vote_rotation(fa[:, :2], fb[:, :2])
+    with pytest.raises(ValueError, match="tol_deg"):
+        voting.vote_rotation(fa, fb, tol_deg=0)
+    with pytest.raises(ValueError, match="needs bundle"):
+        voting.voted_frames("lead_vote", 0.3, {})
+    with pytest.raises(ValueError, match="unknown voted method"):
+        voting.voted_frames("lead", 0.3, BUNDLES)
+
+
+@pytest.fixture(scope="module")
+def moved_pair():
+    return _fixtures.moved_pair(n_keypoints=64)
+
+
+def _vote_and_describe(name, f, g):
+    voted = voting.voted_frames(name, 0.30, BUNDLES)
+    inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches)
+    return inputs[(0, 1)], votes[(0, 1)]
+
+
+def _relative(a, b):
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+def test_shot_vote_recovers_the_pair_rotation_and_bins_both_scans_alike(moved_pair):
+    """SHOT's LRFs of a scan and its moved copy differ by the move exactly, so every match
+    votes the move; the second pass then bins the moved copy as the scan itself (float32
+    round-off at the support's edge aside, as for ``shot_gt``). Turning the copy once more
+    changes nothing: the vote turns with it."""
+    f, g, t = moved_pair
+    (d_f, d_g), vote = _vote_and_describe("shot_vote", f, g)
+    err = np.degrees(so3.geodesic_distance_np(vote.rotation, t[:3, :3]))
+    print(f"vote error {err:.3f}°, support {vote.support} of {vote.proposals}; "
+          f"relative difference {_relative(d_g, d_f):.4f}")
+    assert err < 0.5 and vote.support > 0.9 * len(f.keypoints)
+    assert _relative(d_g, d_f) < 0.02
+    q = so3.euler_to_matrix_np(-0.4, 2.2, 0.7)
+    turned = _fixtures.rotated_copy(g, q)
+    (_, d_turned), vote_q = _vote_and_describe("shot_vote", f, turned)
+    assert np.degrees(so3.geodesic_distance_np(vote_q.rotation, t[:3, :3] @ q.T)) < 0.5
+    assert _relative(d_turned, d_g) < 0.02
+
+
+def test_lead_vote_recovers_the_pair_rotation_from_compass_frames(moved_pair):
+    """Compass's frames are not exactly repeatable, but enough matches agree for the vote to
+    land within a few degrees, and the second pass then describes corresponding keypoints as
+    ``lead_gt`` would (the patch redraw and the network's equivariance error aside)."""
+    f, g, t = moved_pair
+    (d_f, d_g), vote = _vote_and_describe("lead_vote", f, g)
+    err = np.degrees(so3.geodesic_distance_np(vote.rotation, t[:3, :3]))
+    rows = np.linalg.norm(d_f, axis=1) > 0
+    paired, shuffled = _relative(d_g[rows], d_f[rows]), _relative(d_g[rows][::-1], d_f[rows])
+    print(f"vote error {err:.2f}°, support {vote.support} of {vote.proposals}; relative "
+          f"difference {paired:.3f}, against other keypoints {shuffled:.3f}")
+    assert err < 3.0 and vote.support >= 10
+    assert paired < 0.2 * shuffled
+
+
+def test_a_pair_without_agreeing_frames_gets_a_wrong_vote_not_an_error(moved_pair):
+    """Two unrelated scans: the vote still returns a rotation (RANSAC then fails on the pair,
+    as it would for any descriptor), with little support."""
+    f, _, _ = moved_pair
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-1, 1, (4000, 3)).astype(np.float32)
+    noise = scenes.Fragment("noise", pts, np.tile(np.float32([0, 0, 1]), (4000, 1)),
+                            np.arange(64), KDTree(pts))
+    (_, d_n), vote = _vote_and_describe("shot_vote", f, noise)
+    assert d_n.shape == (64, 352) and np.all(np.isfinite(d_n))
+    assert vote.support < 0.5 * vote.proposals
