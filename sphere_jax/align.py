@@ -14,6 +14,7 @@ points as at training time whatever the unit: a Stanford scan (middle side 0.12 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 
 import numpy as np
@@ -117,14 +118,17 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     src = _fragment("source", source, voxel, n_keypoints, seed)
     dst = _fragment("target", target, voxel, n_keypoints, seed + 1)
     lap("voxels, normals, keypoints")
+    distance = 2.5 * voxel                  # RANSAC's and ICP's reach
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     if bundle is not None:
         from sphere_jax import api
         bundles[api.load_bundle(bundle).kind] = api.bundle_path(bundle)
     if method in VOTED:
         voted = voting.voted_frames(method, radius, bundles)
+        agree = functools.partial(registration.consensus, max_distance=distance, seed=seed)
         inputs, _ = voted.describe_pairs({"target": dst, "source": src},
-                                         [("target", "source")], registration.mutual_matches)
+                                         [("target", "source")], registration.mutual_matches,
+                                         agree)
         d_dst, d_src = inputs[("target", "source")]     # p_target = T p_source: (i, j)
     else:
         describe = methods.descriptor(method, radius, bundles)
@@ -132,12 +136,9 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     lap("descriptors")
     ia, ib = registration.mutual_matches(d_src, d_dst)
     lap("matching")
-    distance = 2.5 * voxel
-    t = registration.ransac(dst.points[dst.keypoints[ib]], src.points[src.keypoints[ia]],
-                            distance, seed=seed)
-    moved = src.points[src.keypoints[ia]] @ t[:3, :3].T + t[:3, 3]
-    inliers = int(np.sum(np.linalg.norm(moved - dst.points[dst.keypoints[ib]], axis=1)
-                         < distance))
+    t, inliers = registration.ransac_consensus(dst.points[dst.keypoints[ib]],
+                                               src.points[src.keypoints[ia]], distance,
+                                               seed=seed)
     lap("RANSAC")
     fitness, rmse = np.nan, np.nan
     if icp:

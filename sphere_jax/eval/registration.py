@@ -15,6 +15,7 @@ RRE / RTE averaged over the registered pairs (over all pairs they would only mea
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import time
 from typing import Callable
@@ -86,6 +87,24 @@ def ransac(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000,
     return np.asarray(result.transformation)
 
 
+def ransac_consensus(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000,
+                     seed=0):
+    """``(T̂, inliers)``: :func:`ransac`'s transform and how many correspondences it brings
+    within ``max_distance``."""
+    t = ransac(points_dst_Mx3, points_src_Mx3, max_distance, iterations, seed)
+    moved = np.asarray(points_src_Mx3) @ t[:3, :3].T + t[:3, 3]
+    return t, int(np.sum(np.linalg.norm(moved - points_dst_Mx3, axis=1) < max_distance))
+
+
+def consensus(frag_i, frag_j, desc_i, desc_j, max_distance=0.05, iterations=50_000, seed=0):
+    """How many mutual matches of two descriptor sets one rigid transform explains (RANSAC's
+    inliers): a pair's agreement measured without its ground truth."""
+    ia, ib = mutual_matches(desc_i, desc_j)
+    return ransac_consensus(frag_i.points[frag_i.keypoints[ia]],
+                            frag_j.points[frag_j.keypoints[ib]], max_distance, iterations,
+                            seed)[1]
+
+
 def match_pair(frag_i, frag_j, desc_i, desc_j, t_gt, tau1=TAU1, ransac_distance=0.05,
                ransac_iterations=50_000, seed=0):
     """Metrics of one pair; ``errors`` (distance of every match under the ground truth) lets
@@ -146,8 +165,10 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
     results = []
     for name, describe in describers.items():
         start = time.perf_counter()
+        agree = functools.partial(consensus, max_distance=ransac_distance,
+                                  iterations=ransac_iterations, seed=seed)
         inputs, n_described, votes = _pair_descriptors(name, describe, frags, pair_set,
-                                                       progress)
+                                                       progress, agree)
         ms = 1000.0 * (time.perf_counter() - start) / max(n_described, 1)
         rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], *inputs[(i, j)], t, tau1,
                                                ransac_distance, ransac_iterations, seed),
@@ -162,20 +183,22 @@ def _vote_row(vote, t_gt):
         return {}
     return {"vote_rre_deg": float(np.degrees(so3.geodesic_distance_np(vote.rotation,
                                                                        t_gt[:3, :3]))),
-            "vote_support": vote.support, "vote_proposals": vote.proposals}
+            "vote_support": vote.support, "vote_proposals": vote.proposals,
+            "second_pass": vote.second_pass}
 
 
-def _pair_descriptors(name, describe, frags, pair_set, progress):
+def _pair_descriptors(name, describe, frags, pair_set, progress, agree=None):
     """``({(i, j): (desc_i, desc_j)}, keypoints described, {(i, j): Vote})``: each scan
     described once, or, for a ground-truth diagnostic (``describe.describe_pair``), both scans
     of every pair in that pair's frames, or, for a voted method, in the frames its first pass
-    voted. Wrong counts and non-finite values are refused, naming the method."""
+    voted (the pass ``agree`` scores higher kept). Wrong counts and non-finite values are
+    refused, naming the method."""
     describe_pair = getattr(describe, "describe_pair", None)
     bar = lambda items: tqdm(items, desc=f"{pair_set.name}: {name}", disable=not progress)
     votes = {}
     if isinstance(describe, voting.VotedFrames):
         inputs, votes = describe.describe_pairs(frags, pair_set.transforms, mutual_matches,
-                                                bar)
+                                                agree, bar)
         inputs = {p: tuple(np.asarray(d, np.float32) for d in pair) for p, pair in
                   inputs.items()}
         n_described = sum(len(f.keypoints) for f in frags.values())
@@ -196,7 +219,8 @@ def _pair_descriptors(name, describe, frags, pair_set, progress):
     return inputs, n_described, votes
 
 
-VOTE_COLUMNS = ("method", "scene", "pair", "vote_rre_deg", "vote_support", "vote_proposals")
+VOTE_COLUMNS = ("method", "scene", "pair", "vote_rre_deg", "vote_support", "vote_proposals",
+                "second_pass")
 
 
 def _write_votes(workdir, results, variant):
@@ -207,8 +231,9 @@ def _write_votes(workdir, results, variant):
     if rows:
         report.write(workdir, "votes", rows, VOTE_COLUMNS,
                      f"# Pair votes{variant}\n\nThe voted rotation's error against the "
-                     f"ground truth (°), and how many of the first pass's proposals (one per "
-                     f"match) agreed with it.\n\n"
+                     f"ground truth (°), how many of the first pass's proposals (one per "
+                     f"match) agreed with it, and whether the second pass was kept (False: "
+                     f"RANSAC found more inliers among the first pass's matches).\n\n"
                      + report.table(rows, VOTE_COLUMNS, fmt="{:.2f}") + "\n")
 
 

@@ -35,6 +35,7 @@ class Vote(NamedTuple):
     rotation: np.ndarray     # [3, 3] R̂ with p_i ≈ R̂ p_j + t
     support: int             # proposals within tol_deg of R̂
     proposals: int           # finite proposals (one per first-pass match)
+    second_pass: bool = True  # False: the first pass's matches agreed more, and were kept
 
 
 def project_to_rotation(m_3x3):
@@ -82,11 +83,17 @@ class VotedFrames:
     tol_deg: float = TOL_DEG
 
     def describe_pairs(self, frags: dict, pairs, match: Callable,
-                       progress_bar=lambda items: items):
+                       consensus: Callable | None = None, progress_bar=lambda items: items):
         """``({(i, j): (desc_i, desc_j)}, {(i, j): Vote})`` for the scans ``frags`` (key ->
         Fragment) and the pairs ``(i, j)``, the first pass matched by ``match(desc_i, desc_j)
         -> (ia, ib)`` (the benchmark's mutual nearest neighbours); each scan's first pass is
-        computed once."""
+        computed once.
+
+        A vote can be wrong — at low overlap the few correct matches may be outvoted by a
+        structure both scans share (a floor, a wall corner) — and descriptors in a wrong frame
+        match nothing. With ``consensus(frag_i, frag_j, desc_i, desc_j) -> int`` (how many
+        matches one rigid transform explains: RANSAC's inliers) the pass that more matches
+        agree with is kept, a choice made from the scans alone."""
         cache, inputs, votes = {}, {}, {}
         for i, j in progress_bar(list(pairs)):
             for k in (i, j):
@@ -95,9 +102,12 @@ class VotedFrames:
             (d_i, f_i, s_i), (d_j, f_j, s_j) = cache[i], cache[j]
             ia, ib = match(d_i, d_j)
             vote = vote_rotation(f_i[ia], f_j[ib], self.tol_deg)
-            votes[(i, j)] = vote
-            inputs[(i, j)] = (self.again(frags[i], s_i, np.eye(3)),
-                              self.again(frags[j], s_j, vote.rotation.T))
+            second = (self.again(frags[i], s_i, np.eye(3)),
+                      self.again(frags[j], s_j, vote.rotation.T))
+            if consensus is not None and (consensus(frags[i], frags[j], d_i, d_j) >
+                                          consensus(frags[i], frags[j], *second)):
+                vote, second = vote._replace(second_pass=False), (d_i, d_j)
+            votes[(i, j)], inputs[(i, j)] = vote, second
         return inputs, votes
 
 

@@ -154,3 +154,41 @@ def test_a_pair_without_agreeing_frames_gets_a_wrong_vote_not_an_error(moved_pai
     (_, d_n), vote = _vote_and_describe("shot_vote", f, noise)
     assert d_n.shape == (64, 352) and np.all(np.isfinite(d_n))
     assert vote.support < 0.5 * vote.proposals
+
+
+def test_a_wrong_vote_loses_to_the_first_pass_when_consensus_decides(moved_pair):
+    """Frames that agree on nothing (random ones) vote a wrong rotation, and SHOT binned in it
+    matches little; RANSAC's consensus then keeps SHOT's first pass (in its own LRFs), which
+    was right. Without a consensus the wrong second pass is what comes out."""
+    f, g, t = moved_pair
+    first, again = voting._shot_vote(0.30)
+    rng = np.random.default_rng(4)
+
+    def unrelated_frames(frag):
+        desc, _, state = first(frag)
+        return desc, _random_rotations(rng, len(frag.keypoints)), state
+
+    voted = voting.VotedFrames(unrelated_frames, again)
+    agree = lambda *args: registration.consensus(*args, iterations=5000)
+    inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches,
+                                         agree)
+    kept_first = votes[(0, 1)]
+    (d_f, d_g) = inputs[(0, 1)]
+    assert not kept_first.second_pass
+    assert np.array_equal(d_f, first(f)[0]) and np.array_equal(d_g, first(g)[0])
+    _, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches)
+    wrong = votes[(0, 1)]
+    assert wrong.second_pass
+    print(f"wrong vote {np.degrees(so3.geodesic_distance_np(wrong.rotation, t[:3, :3])):.0f}°")
+    assert np.degrees(so3.geodesic_distance_np(wrong.rotation, t[:3, :3])) > 20
+
+
+def test_consensus_counts_the_matches_one_transform_explains(moved_pair):
+    f, g, t = moved_pair
+    first, _ = voting._shot_vote(0.30)
+    d_f, d_g = first(f)[0], first(g)[0]
+    ia, _ = registration.mutual_matches(d_f, d_g)
+    right = registration.consensus(f, g, d_f, d_g, iterations=5000)
+    shuffled = registration.consensus(f, g, d_f, d_g[::-1], iterations=5000)
+    print(f"consensus {right} of {len(ia)} matches; shuffled descriptors {shuffled}")
+    assert right >= 0.9 * len(ia) and shuffled < 0.3 * right
