@@ -13,6 +13,9 @@ It stays rotation-invariant: turning scan j by Q turns its LRFs by Q, so R̂ bec
 scan j's second frame Q R̂ᵀ turns with it. It serves any LRF-based descriptor; ``lead_vote``
 (LEAD, first pass in Compass's frames) and ``shot_vote`` (SHOT in its LRF) are the two the
 benchmark runs, so that the vote's gain is measured for both sides of the comparison.
+
+A vote can be wrong (at low overlap a structure both scans share can outvote the few correct
+matches); RANSAC's consensus then decides which pass to keep (:meth:`VotedFrames.describe_pairs`).
 """
 from __future__ import annotations
 
@@ -67,6 +70,8 @@ def vote_rotation(frames_a_Mx3x3, frames_b_Mx3x3, tol_deg=TOL_DEG, rows=1024) ->
     rotation = proposals[int(np.argmax(counts))]
     for _ in range(2):                       # the mean of the mode's neighbours, twice
         near = flat @ rotation.ravel() > trace_min
+        if not near.any():                   # a mean that drifted from every proposal
+            break
         rotation = project_to_rotation(proposals[near].mean(0))
     support = int((flat @ rotation.ravel() > trace_min).sum())
     return Vote(rotation, support, len(proposals))
