@@ -160,13 +160,14 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
     :class:`~sphere_jax.eval.voting.VotedFrames`) on every pair of ``pair_set``, on the same
     prepared fragments and keypoints. A voted method's rows add ``vote_rre_deg`` (the voted
     rotation's error), ``vote_support`` and ``vote_proposals`` (the first-pass matches that
-    agreed with it, and all of them)."""
+    agreed with it, and all of them) and ``second_pass`` (False where RANSAC's consensus kept
+    the first pass)."""
     frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
+    agree = functools.partial(consensus, max_distance=ransac_distance,
+                              iterations=ransac_iterations, seed=seed)
     results = []
     for name, describe in describers.items():
         start = time.perf_counter()
-        agree = functools.partial(consensus, max_distance=ransac_distance,
-                                  iterations=ransac_iterations, seed=seed)
         inputs, n_described, votes = _pair_descriptors(name, describe, frags, pair_set,
                                                        progress, agree)
         ms = 1000.0 * (time.perf_counter() - start) / max(n_described, 1)
