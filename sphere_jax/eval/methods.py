@@ -64,8 +64,14 @@ def bundles_needed(names, bundles: dict):
     return [n for n in names if any(not bundles.get(k) for k in BUNDLE_OF.get(n, ()))]
 
 
-def _neighbourhoods(frag: Fragment, indices, radius):
+def neighbourhoods(frag: Fragment, indices, radius):
+    """The exact supports of ``frag``'s points ``indices`` (radius in metres)."""
     return radius_neighbourhoods(frag.points, frag.points[indices], radius, frag.tree)
+
+
+def one_frame(rotation_3x3, k):
+    """``[k, 3, 3]`` float32: every keypoint in the same frame (a pair's shared pose)."""
+    return np.broadcast_to(np.asarray(rotation_3x3, np.float32), (k, 3, 3))
 
 
 def _masked(values_valid, fill):
@@ -90,12 +96,12 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
         r = fpfh_radius or radius / 2
         return lambda f: descriptors.fpfh(f.points, f.normals, f.keypoints, r)
     if name == "shot":
-        return lambda f: descriptors.shot(_neighbourhoods(f, f.keypoints, radius), f.normals)
+        return lambda f: descriptors.shot(neighbourhoods(f, f.keypoints, radius), f.normals)
     if name == "spin":
-        return lambda f: descriptors.spin_image(_neighbourhoods(f, f.keypoints, radius),
+        return lambda f: descriptors.spin_image(neighbourhoods(f, f.keypoints, radius),
                                                 f.normals[f.keypoints])
     if name == "usc":
-        return lambda f: descriptors.usc(_neighbourhoods(f, f.keypoints, radius), f.points,
+        return lambda f: descriptors.usc(neighbourhoods(f, f.keypoints, radius), f.points,
                                          tree=f.tree)
     if name == "lead_compass":
         lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
@@ -132,19 +138,17 @@ def ground_truth_frames(name, radius, bundles=None, chunk=None) -> GroundTruthFr
     if bundles_needed([name], bundles):
         raise ValueError(f"diagnostic {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
 
-    def frames(f, rot_3x3):
-        return np.broadcast_to(np.asarray(rot_3x3, np.float32), (len(f.keypoints), 3, 3))
-
     if name == "shot_gt":
         def describe(f, rot_3x3):
-            return descriptors.shot(_neighbourhoods(f, f.keypoints, radius), f.normals,
-                                    frames(f, rot_3x3))
+            return descriptors.shot(neighbourhoods(f, f.keypoints, radius), f.normals,
+                                    one_frame(rot_3x3, len(f.keypoints)))
     else:
         lead = _bundle(bundles["lead"])
 
         def describe(f, rot_3x3):
             return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                         frames=frames(f, rot_3x3), on_invalid="mask"), 0)
+                                         frames=one_frame(rot_3x3, len(f.keypoints)),
+                                         on_invalid="mask"), 0)
 
     def describe_pair(f_i, f_j, t_4x4):
         return describe(f_i, np.eye(3)), describe(f_j, np.asarray(t_4x4)[:3, :3].T)
@@ -162,11 +166,11 @@ def lrf(name, radius, bundles=None, chunk=None):
             return api.run_chunked(api.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
         return orient
     if name == "shot":
-        return lambda f, idx: lrfs.shot_lrf(_neighbourhoods(f, idx, radius))
+        return lambda f, idx: lrfs.shot_lrf(neighbourhoods(f, idx, radius))
     if name == "toldi":
-        return lambda f, idx: lrfs.toldi_lrf(_neighbourhoods(f, idx, radius))
+        return lambda f, idx: lrfs.toldi_lrf(neighbourhoods(f, idx, radius))
     if name == "3dsn":
-        return lambda f, idx: lrfs.threedsn_lrf(_neighbourhoods(f, idx, radius))
+        return lambda f, idx: lrfs.threedsn_lrf(neighbourhoods(f, idx, radius))
     if bundles_needed([name], bundles):
         raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
     model = _bundle(bundles[name])

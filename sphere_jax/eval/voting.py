@@ -28,7 +28,6 @@ import numpy as np
 from sphere_jax import api
 from sphere_jax.eval import descriptors, lrfs
 from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval.neighbourhood import radius_neighbourhoods
 from sphere_jax.models import lead as lead_model
 
 TOL_DEG = 10.0
@@ -42,7 +41,7 @@ class Vote(NamedTuple):
 
 
 def project_to_rotation(m_3x3):
-    """The rotation nearest to ``m`` in the Frobenius norm (SVD, the determinant forced to +1)."""
+    """The rotation nearest to ``m`` in the Frobenius norm (SVD, determinant forced to +1)."""
     u, _, vt = np.linalg.svd(np.asarray(m_3x3, np.float64))
     return u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
 
@@ -116,19 +115,17 @@ class VotedFrames:
         return inputs, votes
 
 
-def _broadcast(rotation_3x3, k):
-    return np.broadcast_to(np.asarray(rotation_3x3, np.float32), (k, 3, 3))
-
-
 def _shot_vote(radius):
     def first(f):
-        nb = radius_neighbourhoods(f.points, f.points[f.keypoints], radius, f.tree)
+        nb = method_lib.neighbourhoods(f, f.keypoints, radius)
         frames = lrfs.shot_lrf(nb)
         return descriptors.shot(nb, f.normals, frames), frames, None
 
     def again(f, _, rotation_3x3):
-        nb = radius_neighbourhoods(f.points, f.points[f.keypoints], radius, f.tree)
-        return descriptors.shot(nb, f.normals, _broadcast(rotation_3x3, len(f.keypoints)))
+        # The supports are found again rather than kept: a scene's scans would hold them all.
+        nb = method_lib.neighbourhoods(f, f.keypoints, radius)
+        return descriptors.shot(nb, f.normals, method_lib.one_frame(rotation_3x3,
+                                                                     len(f.keypoints)))
     return first, again
 
 
@@ -148,7 +145,8 @@ def _lead_vote(radius, bundles, chunk):
         # LEAD's SO(3) maps in the scan's own axes, computed once: every frame after this is
         # a spectral turn of them, not another pass of the network.
         maps, valid = lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                    frames=_broadcast(np.eye(3), k), on_invalid="mask")
+                                    frames=method_lib.one_frame(np.eye(3), k),
+                                    on_invalid="mask")
         maps[~valid] = 0
         frames, oriented = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
                                           on_invalid="mask")
@@ -160,7 +158,7 @@ def _lead_vote(radius, bundles, chunk):
     def again(f, maps, rotation_3x3):
         if np.allclose(rotation_3x3, np.eye(3)) or not len(maps):
             return maps
-        return turned(maps, _broadcast(rotation_3x3, len(maps)))
+        return turned(maps, method_lib.one_frame(rotation_3x3, len(maps)))
     return first, again
 
 

@@ -53,3 +53,8 @@ def moved_pair(n_keypoints=48):
     g = scenes.Fragment(f.key, moved, (f.normals @ t[:3, :3]).astype(np.float32), f.keypoints,
                         KDTree(moved))
     return f, g, t
+
+
+def relative_difference(a, b):
+    """‖a − b‖ / ‖b‖ (Frobenius)."""
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))

@@ -5,12 +5,9 @@ import pytest
 from sphere_jax import api, paths
 from sphere_jax.eval import methods
 from tests.eval import _fixtures
+from tests.eval._fixtures import relative_difference as _relative
 
 BUNDLES = {"lead": paths.shipped_bundle("lead")}
-
-
-def _relative(a, b):
-    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
 @pytest.fixture(scope="module")

@@ -5,21 +5,13 @@ import pytest
 from sklearn.neighbors import KDTree
 
 from sphere_jax import paths
+from sphere_jax.data import augment
 from sphere_jax.eval import registration, scenes, voting
 from sphere_jax.spherical import so3
 from tests.eval import _fixtures
+from tests.eval._fixtures import relative_difference as _relative
 
 BUNDLES = {"lead": paths.shipped_bundle("lead"), "compass": paths.shipped_bundle("compass")}
-
-
-def _random_rotations(rng, n):
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                     2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-                    axis=1).reshape(n, 3, 3)
 
 
 def _small_turns(rng, n, max_deg):
@@ -37,9 +29,9 @@ def _small_turns(rng, n, max_deg):
 def _frame_pairs(rng, truth, n_in, n_out, noise_deg):
     """First-pass frames: n_in matches whose frames obey F_a = R F_b (each turned by up to
     noise_deg), n_out whose frames are unrelated."""
-    fb = _random_rotations(rng, n_in + n_out)
+    fb = augment.random_rotations(rng, n_in + n_out)
     fa = np.concatenate([_small_turns(rng, n_in, noise_deg) @ truth @ fb[:n_in],
-                         _random_rotations(rng, n_out)])
+                         augment.random_rotations(rng, n_out)])
     return fa, fb
 
 
@@ -47,7 +39,7 @@ def test_vote_finds_the_rotation_of_the_agreeing_matches():
     """70 % of the proposals are outliers, the rest within 4° of the truth: the vote lands
     within a degree of it and its support counts the agreeing matches."""
     rng = np.random.default_rng(0)
-    truth = _random_rotations(rng, 1)[0]
+    truth = augment.random_rotations(rng)
     fa, fb = _frame_pairs(rng, truth, 300, 700, noise_deg=4.0)
     vote = voting.vote_rotation(fa, fb, tol_deg=10.0, rows=128)
     err = np.degrees(so3.geodesic_distance_np(vote.rotation, truth))
@@ -60,7 +52,7 @@ def test_vote_finds_the_rotation_of_the_agreeing_matches():
 
 def test_vote_counts_match_a_loop_over_geodesic_distances():
     rng = np.random.default_rng(1)
-    truth = _random_rotations(rng, 1)[0]
+    truth = augment.random_rotations(rng)
     fa, fb = _frame_pairs(rng, truth, 40, 60, noise_deg=12.0)
     proposals = np.einsum("mij,mkj->mik", fa, fb)
     counts = [sum(so3.geodesic_distance_np(p, q) < np.radians(10.0) for q in proposals)
@@ -76,7 +68,7 @@ def test_vote_counts_match_a_loop_over_geodesic_distances():
 
 def test_vote_skips_frames_it_cannot_use_and_refuses_bad_shapes():
     rng = np.random.default_rng(2)
-    truth = _random_rotations(rng, 1)[0]
+    truth = augment.random_rotations(rng)
     fa, fb = _frame_pairs(rng, truth, 20, 10, noise_deg=2.0)
     fa[:5] = np.nan                             # keypoints their LRF could not orient
     vote = voting.vote_rotation(fa, fb)
@@ -103,10 +95,6 @@ def _vote_and_describe(name, f, g):
     voted = voting.voted_frames(name, 0.30, BUNDLES)
     inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches)
     return inputs[(0, 1)], votes[(0, 1)]
-
-
-def _relative(a, b):
-    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
 def test_shot_vote_recovers_the_pair_rotation_and_bins_both_scans_alike(moved_pair):
@@ -166,7 +154,7 @@ def test_a_wrong_vote_loses_to_the_first_pass_when_consensus_decides(moved_pair)
 
     def unrelated_frames(frag):
         desc, _, state = first(frag)
-        return desc, _random_rotations(rng, len(frag.keypoints)), state
+        return desc, augment.random_rotations(rng, len(frag.keypoints)), state
 
     voted = voting.VotedFrames(unrelated_frames, again)
     agree = lambda *args: registration.consensus(*args, iterations=5000)
