@@ -28,6 +28,8 @@ def get_config(arg=None):
     c.tau1, c.tau2 = 0.10, 0.05
     c.ransac_distance = 0.05
     c.ransac_iterations = 50_000
+    c.vote_hypotheses = 5             # modes of a pair's vote that RANSAC's consensus chooses from
+    c.vote_box = True                 # ... and the box turns of the strongest (voting.box_orbit)
     c.tau2_curve = [0.0, 0.01, 0.02, 0.03, 0.05, 0.075, 0.1, 0.15, 0.2]
     if c.size == "quick":
         c.methods = "fpfh,shot,lead,lead_pn"

@@ -126,9 +126,10 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if method in VOTED:
         voted = voting.voted_frames(method, radius, bundles)
         agree = functools.partial(registration.consensus, max_distance=distance, seed=seed)
+        screen = functools.partial(agree, iterations=registration.SCREEN_ITERATIONS)
         inputs, _ = voted.describe_pairs({"target": dst, "source": src},
                                          [("target", "source")], registration.mutual_matches,
-                                         agree)
+                                         agree, screen=screen)
         d_dst, d_src = inputs[("target", "source")]     # p_target = T p_source: (i, j)
     else:
         describe = methods.descriptor(method, radius, bundles)
