@@ -166,9 +166,9 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
     :class:`~sphere_jax.eval.voting.VotedFrames`) on every pair of ``pair_set``, on the same
     prepared fragments and keypoints. A voted method's rows add ``vote_rre_deg`` (the voted
     rotation's error), ``vote_support`` and ``vote_proposals`` (the first-pass matches that
-    agreed with it, and all of them), ``vote_mode`` (which of the vote's modes the consensus
-    kept; 0: the strongest) and ``second_pass`` (False where RANSAC's consensus kept
-    the first pass)."""
+    agreed with it, and all of them), ``vote_mode`` and ``box_turn_deg`` (which of the vote's
+    modes the consensus kept, 0 the strongest, and the box turn applied to it) and
+    ``second_pass`` (False where RANSAC's consensus kept the first pass)."""
     frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
     agree = functools.partial(consensus, max_distance=ransac_distance,
                               iterations=ransac_iterations, seed=seed)
@@ -193,7 +193,8 @@ def _vote_row(vote, t_gt):
     return {"vote_rre_deg": float(np.degrees(so3.geodesic_distance_np(vote.rotation,
                                                                        t_gt[:3, :3]))),
             "vote_support": vote.support, "vote_proposals": vote.proposals,
-            "second_pass": vote.second_pass, "vote_mode": vote.mode}
+            "second_pass": vote.second_pass, "vote_mode": vote.mode,
+            "box_turn_deg": vote.box_turn_deg}
 
 
 def _pair_descriptors(name, describe, frags, pair_set, progress, agree=None, screen=None):
@@ -229,7 +230,7 @@ def _pair_descriptors(name, describe, frags, pair_set, progress, agree=None, scr
 
 
 VOTE_COLUMNS = ("method", "scene", "pair", "vote_rre_deg", "vote_support", "vote_proposals",
-                "vote_mode", "second_pass")
+                "vote_mode", "box_turn_deg", "second_pass")
 
 
 def _write_votes(workdir, results, variant):
@@ -242,7 +243,8 @@ def _write_votes(workdir, results, variant):
                      f"# Pair votes{variant}\n\nThe voted rotation's error against the "
                      f"ground truth (°), how many of the first pass's proposals (one per "
                      f"match) agreed with it, which of the vote's modes it is (0: the "
-                     f"strongest; RANSAC's consensus chose it) and whether the second pass "
+                     f"strongest), the box turn applied to it (0: none; RANSAC's consensus "
+                     f"chose both) and whether the second pass "
                      f"was kept (False: RANSAC found more inliers among the first pass's "
                      f"matches).\n\n"
                      + report.table(rows, VOTE_COLUMNS, fmt="{:.2f}") + "\n")

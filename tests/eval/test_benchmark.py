@@ -35,6 +35,8 @@ def test_registration_tiny_writes_results(tmp_path, shared):
     assert [v["method"] for v in votes] == ["shot_vote"] * 2
     assert all(float(v["vote_rre_deg"]) < 10.0 and
                0 < int(v["vote_support"]) <= int(v["vote_proposals"]) for v in votes)
+    assert all(0 <= int(v["vote_mode"]) < c.vote_hypotheses and
+               float(v["box_turn_deg"]) in (0.0, 90.0, 120.0, 180.0) for v in votes)
     assert float(means["shot_vote"]["inlier_ratio"]) > 1.5 * float(means["shot"]["inlier_ratio"])
 
 
