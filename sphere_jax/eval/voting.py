@@ -54,6 +54,12 @@ def project_to_rotation(m_3x3):
     return u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
 
 
+def _proposals(frames_a_Mx3x3, frames_b_Mx3x3):
+    """``[M', 3, 3]``: the finite proposals ``F_a[m] F_bᵀ[m]`` of matched frame pairs."""
+    proposals = np.einsum("mij,mkj->mik", frames_a_Mx3x3, frames_b_Mx3x3)
+    return proposals[np.all(np.isfinite(proposals), axis=(1, 2))]
+
+
 def vote_rotation(frames_a_Mx3x3, frames_b_Mx3x3, tol_deg=TOL_DEG, rows=1024) -> Vote:
     """The strongest mode of the proposals (:func:`vote_rotations` with one hypothesis)."""
     return vote_rotations(frames_a_Mx3x3, frames_b_Mx3x3, tol_deg, 1, rows)[0]
@@ -81,8 +87,7 @@ def vote_rotations(frames_a_Mx3x3, frames_b_Mx3x3, tol_deg=TOL_DEG, hypotheses=1
         raise ValueError(f"tol_deg must be in (0, 90) degrees, got {tol_deg}")
     if int(hypotheses) != hypotheses or hypotheses < 1:
         raise ValueError(f"hypotheses must be a positive integer, got {hypotheses!r}")
-    proposals = np.einsum("mij,mkj->mik", fa, fb)
-    proposals = proposals[np.all(np.isfinite(proposals), axis=(1, 2))]
+    proposals = _proposals(fa, fb)
     if len(proposals) == 0:
         return [Vote(np.eye(3), 0, 0)]
     flat = proposals.reshape(-1, 9)
@@ -158,8 +163,7 @@ class VotedFrames:
         modes = vote_rotations(frames_a, frames_b, self.tol_deg, self.hypotheses)
         if not self.box or modes[0].proposals == 0:
             return modes
-        proposals = np.einsum("mij,mkj->mik", frames_a, frames_b).reshape(-1, 9)
-        proposals = proposals[np.all(np.isfinite(proposals), axis=1)]
+        proposals = _proposals(frames_a, frames_b).reshape(-1, 9)
         near, apart = (1.0 + 2.0 * np.cos(np.radians(d)) for d in (self.tol_deg,
                                                                    2.0 * self.tol_deg))
         out = list(modes)
