@@ -21,6 +21,7 @@ def get_config(arg=None):
     c.task = "classification"
     c.methods = "pointnet,compass+pointnet"
     c.compass_bundle = paths.shipped_bundle("compass_shapes")
+    c.compass_train_rotated = False   # True: Compass + PointNet trains on randomly turned shapes
     c.eval_rotation_seed = 0          # AR split: one seeded rotation per test shape
     c.rotate = False                  # no rotated variant of this benchmark (it has AR)
     return c
