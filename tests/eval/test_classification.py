@@ -29,3 +29,13 @@ def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
     compass_drop = acc[("compass+pointnet", "NR")] - acc[("compass+pointnet", "AR")]
     assert compass_drop < 0.6 * (acc[("pointnet", "NR")] - acc[("pointnet", "AR")])
     assert acc[("compass+pointnet", "AR")] > acc[("pointnet", "AR")] + 0.2
+
+
+def test_compass_train_rotated_turns_only_compass_training_shapes():
+    c = eval_classification.get_config("tiny")
+    c.compass_bundle = paths.shipped_bundle("compass_shapes_cpu", required=True)
+    assert not classification.method_config(c, "compass+pointnet").data.rotate
+    c.compass_train_rotated = True
+    assert classification.method_config(c, "compass+pointnet").data.rotate
+    # plain PointNet is the rotation-sensitive reference: it always trains in canonical pose
+    assert not classification.method_config(c, "pointnet").data.rotate
