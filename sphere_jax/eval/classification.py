@@ -50,16 +50,17 @@ def method_config(config, method):
     c = ml_collections.ConfigDict(config.to_dict())
     if method not in METHODS:
         raise ValueError(f"classification method must be one of {METHODS}, got {method!r}")
-    c.orient_bundle = config.compass_bundle if method == "compass+pointnet" else ""
+    c.orient_bundle = ""
     if method == "compass+pointnet":
+        c.orient_bundle = config.compass_bundle
+        if not bundle_files.is_bundle(c.orient_bundle):
+            raise checks.MissingError(
+                f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
+                f"python -m experiments.train --config=compass_shapes:mid")
         # Turned at random before Compass orients them, the training shapes show the
         # classifier the frames Compass gives rotated shapes — its errors and its choices
         # among a symmetric shape's frames included — not only those of canonical poses.
         c.data.rotate = bool(config.compass_train_rotated)
-    if method == "compass+pointnet" and not bundle_files.is_bundle(c.orient_bundle):
-        raise checks.MissingError(
-            f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
-            f"python -m experiments.train --config=compass_shapes:mid")
     return c
 
 
