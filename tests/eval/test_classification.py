@@ -2,8 +2,10 @@
 plain PointNet does not (embedded shapes, the shipped B = 8 whole-shape Compass)."""
 import csv
 
+import pytest
+
 from configs import eval_classification
-from sphere_jax import paths
+from sphere_jax import checks, paths
 from sphere_jax.eval import classification
 
 
@@ -39,3 +41,11 @@ def test_compass_train_rotated_turns_only_compass_training_shapes():
     assert classification.method_config(c, "compass+pointnet").data.rotate
     # plain PointNet is the rotation-sensitive reference: it always trains in canonical pose
     assert not classification.method_config(c, "pointnet").data.rotate
+
+
+def test_missing_compass_bundle_is_named(tmp_path):
+    c = eval_classification.get_config("tiny")
+    c.compass_bundle = str(tmp_path / "no_bundle")
+    with pytest.raises(checks.MissingError, match="compass_bundle="):
+        classification.method_config(c, "compass+pointnet")
+    classification.method_config(c, "pointnet")   # plain PointNet does not need it
