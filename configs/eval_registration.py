@@ -10,7 +10,7 @@ correct matches, registration recall, RRE, RTE, ms per keypoint) and fmr_vs_tau2
 Arguments: '' (5000 keypoints, every pair), 'quick' (2500 keypoints, 8 pairs per scene: the
 README's main job, with the shipped LEAD and LEAD-PN), 'tiny' (tests). Expected on the real
 redkitchen pairs: every method but FPFH matches all pairs, the shipped 'mid' LEAD-PN and LEAD
-with 3.4x and 4.1-4.4x FPFH's inlier ratio (LEAD (Compass) 0.356), below SHOT's (0.368) and
+with 3.4x and 4.3-4.6x FPFH's inlier ratio (LEAD (Compass) 0.356), below SHOT's (0.368) and
 USC's, LEAD (Compass) with the most correct matches per pair (344) — see the README's results.
 ``lead_vote`` and ``shot_vote`` add the pair vote (``sphere_jax.eval.voting``: a first pass in
 the methods' own LRFs votes the pair's rotation, the second describes both scans in it; on
