@@ -13,6 +13,7 @@ Same seed → byte-identical files.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -305,8 +306,26 @@ def make_all(out_dir, seed=0, n_scenes=2, scene_kwargs=None, shape_kwargs=None,
                                     **(shape_kwargs or {}))
     summary["objects"] = make_object_frames(os.path.join(out_dir, "objects"), seed * 1000 + 202,
                                             **(object_kwargs or {}))
+    # The same seed gives the same bytes on one machine, but the floats of another CPU may
+    # not: the fingerprints let two machines' results be traced to their data.
+    summary["fingerprints"] = {name: fingerprint(os.path.join(out_dir, name))
+                               for name in ("3dmatch", "modelnet", "objects")}
     io.atomic_write(os.path.join(out_dir, "summary.json"), json.dumps(summary, indent=1).encode())
     return summary
+
+
+def fingerprint(folder):
+    """SHA-256 (hex) of every file under ``folder``: their relative paths and contents, in
+    sorted order."""
+    h = hashlib.sha256()
+    for dirpath, dirs, files in os.walk(folder):
+        dirs.sort()
+        for name in sorted(files):
+            path = os.path.join(dirpath, name)
+            h.update(os.path.relpath(path, folder).encode() + b"\0")
+            with open(path, "rb") as f:
+                h.update(hashlib.sha256(f.read()).digest())
+    return h.hexdigest()
 
 
 DATA_VERSION = 2

@@ -1,6 +1,7 @@
 import hashlib
 import json
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -38,6 +39,20 @@ def test_same_seed_same_bytes(small_data):
     synthetic.make_all(str(small_data / "b"), seed=3, n_scenes=1, **SMALL)
     a, b = _digest(small_data / "a"), _digest(small_data / "b")
     assert len(a) > 30 and a == b
+
+
+def test_summary_fingerprints_the_generated_files(small_data, tmp_path):
+    with open(small_data / "a" / "summary.json") as f:
+        prints = json.load(f)["fingerprints"]
+    assert sorted(prints) == ["3dmatch", "modelnet", "objects"]
+    assert len(set(prints.values())) == 3
+    assert prints["objects"] == synthetic.fingerprint(str(small_data / "a" / "objects"))
+    # one byte of one file changes its folder's fingerprint
+    copy = tmp_path / "objects"
+    shutil.copytree(small_data / "a" / "objects", copy)
+    victim = sorted(p for p in copy.iterdir() if p.suffix == ".json")[0]
+    victim.write_bytes(victim.read_bytes() + b" ")
+    assert synthetic.fingerprint(str(copy)) != prints["objects"]
 
 
 def test_every_pair_aligns_under_its_ground_truth(small_data):
