@@ -380,12 +380,17 @@ def continued_bundle(config):
         if key == "data" and isinstance(theirs, dict):      # written before those fields
             theirs = {**DATA_ADDED, **theirs}
         if mine != theirs:
-            raise ValueError(f"train.init_bundle={path!r} was trained with another {key} "
-                             f"({theirs!r}) than this config's ({mine!r})")
+            if isinstance(mine, dict) and isinstance(theirs, dict):    # name the fields only
+                differ = [k for k in sorted(set(mine) | set(theirs), key=str)
+                          if mine.get(k) != theirs.get(k)]
+                theirs = {k: theirs.get(k) for k in differ}
+                mine = {k: mine.get(k) for k in differ}
+            raise checks.ConfigError(f"train.init_bundle={path!r} was trained with another "
+                                     f"{key} ({theirs!r}) than this config's ({mine!r})")
     done = int(trained.train.steps)
     if done >= config.train.steps:
-        raise ValueError(f"train.init_bundle={path!r} has {done} steps done; train.steps="
-                         f"{config.train.steps} must be more")
+        raise checks.ConfigError(f"train.init_bundle={path!r} has {done} steps done; "
+                                 f"train.steps={config.train.steps} must be more")
     return done, bundle.read_variables(path)
 
 

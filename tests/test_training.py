@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from configs import classify, compass, lead, lead_pn, sound
-from sphere_jax import models, training
+from sphere_jax import checks, models, training
 from sphere_jax.data.generators import synthetic
 from tests import reference
 from tests.data.generators.test_synthetic import SMALL
@@ -107,8 +107,14 @@ def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
     assert 0 < moved < 5e-3                       # two Adam steps of lr 1e-3 at most
     other = tiny("lead", small_root, steps=4, init_bundle=str(tmp_path / "a" / "bundle"))
     other.model_kwargs.features = (4, 4, 4, 2, 1)
-    with pytest.raises(ValueError, match="another model_kwargs"):
+    with pytest.raises(checks.ConfigError, match="another model_kwargs"):   # one line, exit 2
         training.train_and_evaluate(other, str(tmp_path / "c"), progress=False)
+    other = tiny("lead", small_root, steps=4, init_bundle=str(tmp_path / "a" / "bundle"))
+    other.data.copy_draw = "support"
+    # Only the field that differs is named, not the whole data section.
+    named = r"another data \({'copy_draw': 'patch'}\) than this config's \({'copy_draw': 'support'}"
+    with pytest.raises(checks.ConfigError, match=named):
+        training.train_and_evaluate(other, str(tmp_path / "d"), progress=False)
 
 
 def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
