@@ -52,6 +52,7 @@ def base(size: str) -> ml_collections.ConfigDict:
         eval_batches=4, checkpoint_every=1000, keep_checkpoints=3,
         fused=True,               # spectral-domain training; False: layer-by-layer reference
         init_bundle="",           # continue a run from its committed bundle (another machine)
+        finetune_bundle="",       # start from a bundle's weights at step 0 (other data)
         time_budget_s=0.0,        # > 0: stop (checkpoint, bundle) once the loop ran this long
         devices=0))               # data-parallel devices per host; 0: all local devices
     if size == "mid":

@@ -282,8 +282,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
                        init_variables=None):
     """Train (resuming from the newest checkpoint in ``workdir``, with any device count),
     evaluate, write a bundle. ``init_variables`` (params and batch_stats, e.g. from a bundle)
-    start a fresh run from trained weights (test-time adaptation). Returns the final state and
-    the last metrics.
+    start a fresh run from trained weights (test-time adaptation), as ``train.finetune_bundle``
+    does from the command line; ``train.init_bundle`` continues a bundle at its step. Returns
+    the final state and the last metrics.
 
     ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
     minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
@@ -300,21 +301,21 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     model = training_model(config)
     tx = optax.adam(config.train.learning_rate)
     state = init_state(config, model, tx, get_batch(config, source, 0))
-    if init_variables is not None:
-        state.update(params=init_variables["params"],
-                     batch_stats=init_variables.get("batch_stats", {}),
-                     opt_state=tx.init(init_variables["params"]))
-    state = parallel.replicate(state, mesh)
     train_step, eval_step = make_steps(config, model, tx, mesh)
     mngr = checkpoint_manager(workdir, config)
     main_host = jax.process_index() == 0          # the one that logs
     metrics_path = os.path.join(workdir, "metrics.jsonl")
     start = 0
-    if mngr.latest_step() is None and config.train.get("init_bundle"):
-        start, variables = continued_bundle(config)
-        state.update(params=variables["params"], batch_stats=variables.get("batch_stats", {}),
-                     opt_state=tx.init(variables["params"]))
-        state = parallel.replicate(state, mesh)
+    if mngr.latest_step() is None:                # a new run: from trained weights?
+        if config.train.get("init_bundle"):
+            start, init_variables = continued_bundle(config)
+        elif config.train.get("finetune_bundle"):
+            init_variables = finetuned_bundle(config)
+    if init_variables is not None:                # Adam's moments start afresh
+        state.update(params=init_variables["params"],
+                     batch_stats=init_variables.get("batch_stats", {}),
+                     opt_state=tx.init(init_variables["params"]))
+    state = parallel.replicate(state, mesh)
     if mngr.latest_step() is not None:
         start, state, mngr = restore_newest(mngr, workdir, config, state, mesh)
         if main_host:
@@ -373,9 +374,33 @@ def continued_bundle(config):
     the loop goes on at the bundle's step with the batches it would have drawn (they are a
     function of the step), but Adam's moments start afresh — they are not in bundles."""
     path = config.train.init_bundle
+    if config.train.get("finetune_bundle"):
+        raise checks.ConfigError("train.init_bundle and train.finetune_bundle are both set; a "
+                                 "run either continues a bundle or fine-tunes one")
     trained = bundle.read_config(path)
+    _check_same(config, trained, ("model", "model_kwargs", "data", "seed"), "init_bundle")
+    done = int(trained.train.steps)
+    if done >= config.train.steps:
+        raise checks.ConfigError(f"train.init_bundle={path!r} has {done} steps done; "
+                                 f"train.steps={config.train.steps} must be more")
+    return done, bundle.read_variables(path)
+
+
+def finetuned_bundle(config):
+    """The variables of ``config.train.finetune_bundle``: a new run from step 0 that starts
+    from a trained bundle's weights, with this config's data, batch size and learning rate
+    (copies of another kind, larger batches). Only the network must be the bundle's."""
+    path = config.train.finetune_bundle
+    _check_same(config, bundle.read_config(path), ("model", "model_kwargs"), "finetune_bundle")
+    return bundle.read_variables(path)
+
+
+def _check_same(config, trained, keys, field):
+    """ConfigError naming the first of ``keys`` whose value differs between ``config`` and
+    the bundle's ``trained`` config (for a section, only the fields that differ)."""
+    path = config.train[field]
     as_dict = lambda c: json.loads(json.dumps(c.to_dict() if hasattr(c, "to_dict") else c))
-    for key in ("model", "model_kwargs", "data", "seed"):
+    for key in keys:
         mine, theirs = as_dict(config.get(key)), as_dict(trained.get(key))
         if key == "data" and isinstance(theirs, dict):      # written before those fields
             theirs = {**DATA_ADDED, **theirs}
@@ -385,13 +410,8 @@ def continued_bundle(config):
                           if mine.get(k) != theirs.get(k)]
                 theirs = {k: theirs.get(k) for k in differ}
                 mine = {k: mine.get(k) for k in differ}
-            raise checks.ConfigError(f"train.init_bundle={path!r} was trained with another "
+            raise checks.ConfigError(f"train.{field}={path!r} was trained with another "
                                      f"{key} ({theirs!r}) than this config's ({mine!r})")
-    done = int(trained.train.steps)
-    if done >= config.train.steps:
-        raise checks.ConfigError(f"train.init_bundle={path!r} has {done} steps done; "
-                                 f"train.steps={config.train.steps} must be more")
-    return done, bundle.read_variables(path)
 
 
 def evaluate(config, source, state, eval_step, mesh):
@@ -415,7 +435,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     config.data.root = str(data_root)
     config.data.root_weights = ""          # the training roots' shares mean nothing here
     config.data.update(dict(data or {}))
-    config.train.init_bundle = ""
+    config.train.init_bundle = config.train.finetune_bundle = ""
     config.train.steps = int(steps)
     for key in ("checkpoint_every", "eval_every", "log_every"):
         config.train[key] = max(1, min(config.train[key], steps))

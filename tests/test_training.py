@@ -117,6 +117,36 @@ def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
         training.train_and_evaluate(other, str(tmp_path / "d"), progress=False)
 
 
+def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, tmp_path):
+    """train.finetune_bundle: another copy draw and batch size (which init_bundle refuses),
+    step 1 onwards from the bundle's weights; another network, or init_bundle as well, is a
+    ConfigError."""
+    from sphere_jax import api
+    first = tiny("lead", small_root, steps=2, log_every=1, eval_every=4, checkpoint_every=2)
+    training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
+    path = str(tmp_path / "a" / "bundle")
+    tune = tiny("lead", small_root, steps=2, log_every=1, eval_every=4, checkpoint_every=2,
+                finetune_bundle=path, batch_size=2)
+    tune.data.copy_draw = "support"
+    tune.seed = first.seed + 1                    # its own init would be far from the bundle
+    training.train_and_evaluate(tune, str(tmp_path / "b"), progress=False)
+    steps = [json.loads(ln)["step"] for ln in
+             (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
+    assert steps == [1, 2]
+    before = api.load_bundle(path).variables["params"]
+    after = api.load_bundle(tmp_path / "b" / "bundle").variables["params"]
+    moved = max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in
+                zip(jax.tree_util.tree_leaves(before), jax.tree_util.tree_leaves(after)))
+    assert 0 < moved < 5e-3                       # two Adam steps from the bundle, not an init
+    other = tiny("lead", small_root, steps=2, finetune_bundle=path)
+    other.model_kwargs.features = (4, 4, 4, 2, 1)
+    with pytest.raises(checks.ConfigError, match="finetune_bundle.*another model_kwargs"):
+        training.train_and_evaluate(other, str(tmp_path / "c"), progress=False)
+    both = tiny("lead", small_root, steps=4, finetune_bundle=path, init_bundle=path)
+    with pytest.raises(checks.ConfigError, match="both set"):
+        training.train_and_evaluate(both, str(tmp_path / "d"), progress=False)
+
+
 def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     from experiments import adapt
     from sphere_jax import api
