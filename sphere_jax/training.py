@@ -421,7 +421,8 @@ def evaluate(config, source, state, eval_step, mesh):
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}
 def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True, data=None):
     """Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND bundle ``trained``
-    with its own self-supervised loss on the scans under ``data_root``; the adapted bundle is
+    with its own self-supervised loss on the scans under ``data_root`` (never their ground
+    truth: 'scan' copies become 'support' copies); the adapted bundle is
     written to ``workdir/bundle`` (re-running resumes). ``data`` overrides ``config.data``
     fields for scans of another scale (voxel, radius, keypoint_leaf). Returns
     ``(path, last metrics)``."""
@@ -435,6 +436,14 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     config.data.root = str(data_root)
     config.data.root_weights = ""          # the training roots' shares mean nothing here
     config.data.update(dict(data or {}))
+    # Copies from another scan read the scans' ground-truth poses; on the test scans that would
+    # be supervision. A bundle trained with them adapts on second draws of the support (what
+    # training does on unposed scans).
+    if data and dict(data).get("copy_draw") == "scan":
+        raise checks.ConfigError("test-time adaptation cannot use copy_draw='scan': it reads "
+                                 "the test scans' ground-truth poses")
+    if config.data.get("copy_draw") == "scan":
+        config.data.copy_draw = "support"
     config.train.init_bundle = config.train.finetune_bundle = ""
     config.train.steps = int(steps)
     for key in ("checkpoint_every", "eval_every", "log_every"):

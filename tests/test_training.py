@@ -165,6 +165,27 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     assert 0 < max(diffs) < 5e-3
 
 
+def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path, monkeypatch):
+    """A bundle trained with copies from another scan (ground-truth poses) adapts on second
+    draws of the support: the poses of the scans it adapts on are never read."""
+    from sphere_jax import api
+    from sphere_jax.data import poses
+    config = tiny("compass", small_root, steps=1)
+    config.data.copy_draw = "scan"
+    training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
+    trained = api.load_bundle(tmp_path / "src" / "bundle")
+
+    def no_ground_truth(*_):
+        raise AssertionError("adaptation read ground-truth poses")
+    monkeypatch.setattr(poses, "scene_poses", no_ground_truth)
+    path, _ = training.adapt(trained, config.data.root, 1, str(tmp_path / "adapted"),
+                             progress=False)
+    assert api.load_bundle(path).config.data.copy_draw == "support"
+    with pytest.raises(checks.ConfigError, match="ground-truth poses"):
+        training.adapt(trained, config.data.root, 1, str(tmp_path / "again"), progress=False,
+                       data={"copy_draw": "scan"})
+
+
 def _random_batch(config, n, seed=0):
     from sphere_jax.data import pipeline
     rng = np.random.default_rng(seed)
