@@ -88,10 +88,17 @@ def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_roo
     assert bundle.read_config(str(tmp_path / "bundle")).train.steps == 3
 
 
+def _max_change(bundle_a, bundle_b):
+    """The largest change of any parameter between two bundles' weights."""
+    from sphere_jax import api
+    a, b = (jax.tree_util.tree_leaves(api.load_bundle(p).variables["params"])
+            for p in (bundle_a, bundle_b))
+    return max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in zip(a, b))
+
+
 def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
     """A fresh machine continues a run from its bundle: it starts at the bundle's step, from
     its parameters (moved by Adam steps only), and refuses a bundle of another model."""
-    from sphere_jax import api
     first = tiny("lead", small_root, steps=2, log_every=1, eval_every=4, checkpoint_every=2)
     training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
     more = tiny("lead", small_root, steps=4, log_every=1, eval_every=4, checkpoint_every=2,
@@ -100,10 +107,7 @@ def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
     steps = [json.loads(ln)["step"] for ln in
              (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
     assert steps == [3, 4]
-    before = api.load_bundle(tmp_path / "a" / "bundle").variables["params"]
-    after = api.load_bundle(tmp_path / "b" / "bundle").variables["params"]
-    moved = max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in
-                zip(jax.tree_util.tree_leaves(before), jax.tree_util.tree_leaves(after)))
+    moved = _max_change(tmp_path / "a" / "bundle", tmp_path / "b" / "bundle")
     assert 0 < moved < 5e-3                       # two Adam steps of lr 1e-3 at most
     other = tiny("lead", small_root, steps=4, init_bundle=str(tmp_path / "a" / "bundle"))
     other.model_kwargs.features = (4, 4, 4, 2, 1)
@@ -121,7 +125,6 @@ def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, t
     """train.finetune_bundle: another copy draw and batch size (which init_bundle refuses),
     step 1 onwards from the bundle's weights; another network, or init_bundle as well, is a
     ConfigError."""
-    from sphere_jax import api
     first = tiny("lead", small_root, steps=2, log_every=1, eval_every=4, checkpoint_every=2)
     training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
     path = str(tmp_path / "a" / "bundle")
@@ -133,10 +136,7 @@ def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, t
     steps = [json.loads(ln)["step"] for ln in
              (tmp_path / "b" / "metrics.jsonl").read_text().splitlines()]
     assert steps == [1, 2]
-    before = api.load_bundle(path).variables["params"]
-    after = api.load_bundle(tmp_path / "b" / "bundle").variables["params"]
-    moved = max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in
-                zip(jax.tree_util.tree_leaves(before), jax.tree_util.tree_leaves(after)))
+    moved = _max_change(path, tmp_path / "b" / "bundle")
     assert 0 < moved < 5e-3                       # two Adam steps from the bundle, not an init
     other = tiny("lead", small_root, steps=2, finetune_bundle=path)
     other.model_kwargs.features = (4, 4, 4, 2, 1)
@@ -149,7 +149,6 @@ def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, t
 
 def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     from experiments import adapt
-    from sphere_jax import api
     config = tiny("compass", small_root, steps=1)
     scans = config.data.root
     # Trained on weighted roots; adapted on one folder (the weights must not follow it).
@@ -157,12 +156,9 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
     adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={scans}",
                 "--steps=2", f"--workdir={tmp_path / 'adapted'}"])
-    before = api.load_bundle(tmp_path / "src" / "bundle").variables["params"]
-    after = api.load_bundle(tmp_path / "adapted" / "bundle").variables["params"]
-    diffs = [float(np.abs(np.asarray(a) - np.asarray(b)).max())
-             for a, b in zip(jax.tree_util.tree_leaves(before), jax.tree_util.tree_leaves(after))]
+    moved = _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle")
     # Two Adam steps of lr 1e-3 move each weight by at most ~2e-3: adapted, not re-initialised.
-    assert 0 < max(diffs) < 5e-3
+    assert 0 < moved < 5e-3
 
 
 def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path, monkeypatch):

@@ -1,5 +1,5 @@
-"""The bundles in ``sphere_jax/weights`` (the shipped ones and the candidates for the next
-ones) state what they were trained on, and none was trained on an evaluation scene: the
+"""The bundles in ``sphere_jax/weights`` (the shipped ones and any kept beside them) state
+what they were trained on, and none was trained on an evaluation scene: the
 redkitchen fragments (``demo_fullres`` is redkitchen 0 and 1) and the bunny are test scans."""
 import glob
 import os
