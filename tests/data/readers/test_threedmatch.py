@@ -14,8 +14,9 @@ def _transform(points, t):
 
 def test_3dmatch_scene_ground_truth_aligns(shared):
     scene = threedmatch.load_fragment_scene(os.path.join(shared, "3dmatch/7-scenes-redkitchen"))
-    assert scene.fragments == [0, 5, 6, 21, 34]
-    assert scene.pairs == [(0, 5), (0, 6), (5, 6), (5, 21), (6, 21)]
+    assert scene.fragments == [0, 4, 5, 6, 7, 21, 34, 59]
+    assert scene.pairs == [(0, 4), (0, 5), (0, 6), (4, 5), (4, 6), (4, 7), (5, 6), (5, 7),
+                           (5, 21), (6, 7), (6, 21), (6, 59), (7, 21), (7, 59)]
     a, b = scene.cloud(0).points, scene.cloud(5).points
     nn = NearestNeighbors(n_neighbors=1).fit(a)
     aligned = np.mean(nn.kneighbors(_transform(b, scene.transforms[(0, 5)]))[0] < 0.05)
@@ -29,6 +30,7 @@ def test_3dmatch_scene_ground_truth_aligns(shared):
     lo = threedmatch.load_fragment_scene(
         os.path.join(shared, "3dmatch/7-scenes-redkitchen"),
         os.path.join(shared, "3dmatch/3DLoMatch/7-scenes-redkitchen-evaluation"))
+    assert len(lo.pairs) == 13
     assert (0, 34) in lo.pairs and all(lo.overlaps[p] < 0.35 for p in lo.pairs if 34 in p)
 
 
