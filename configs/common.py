@@ -17,6 +17,13 @@ SIZES = ("paper", "mid", "cpu", "tiny")
 B24_INFER_CHUNK = 64
 
 
+# The shipped bundles' training scans: eight synthetic rooms (the embedded two and the training
+# rooms of seeds 1-3), 96 fragments. The clean real scans of ../shared/data add little at a
+# 2 cm voxel and 30 cm supports: open3d's Feature fragments are 5 cm voxels (most supports
+# fall under min_points).
+MID_ROOT = "embedded,embedded:1,embedded:2,embedded:3"
+
+
 def check_size(arg):
     size = arg or "paper"
     if size not in SIZES:
@@ -43,12 +50,18 @@ def base(size: str) -> ml_collections.ConfigDict:
                                   # second draw from the whole support) or 'scan' (another
                                   # scan of the scene, by its ground truth: data/poses.py)
         copy_jitter=0.0,          # Gaussian noise on the copy (std, units of the radius)
+        allow_evaluation_scenes=False,   # True: an evaluation-scene experiment, recorded
+                                         # (sphere_jax/data/evaluation_scenes.py)
     ))
     # Patches per jitted inference call (api.Bundle.orient/describe); memory grows with it and
     # with the chunks run at a time (api.run_chunked).
     c.infer_chunk = 256
     c.train = ml_collections.ConfigDict(dict(
-        steps=50_000, batch_size=8, learning_rate=1e-3, log_every=50, eval_every=1000,
+        steps=50_000, batch_size=8, learning_rate=1e-3,
+        schedule="constant",      # or 'warmup_cosine': warmup_steps up to learning_rate, then
+        warmup_steps=0,           # a cosine decay to final_lr_fraction of it at `steps`
+        final_lr_fraction=1.0,
+        log_every=50, eval_every=1000,
         eval_batches=4, checkpoint_every=1000, keep_checkpoints=3,
         fused=True,               # spectral-domain training; False: layer-by-layer reference
         init_bundle="",           # continue a run from its committed bundle (another machine)
@@ -65,6 +78,16 @@ def base(size: str) -> ml_collections.ConfigDict:
         c.data.update(n_points=64, min_points=20, keypoint_leaf=0.4)
         c.train.update(steps=3, batch_size=4, log_every=1, eval_every=2, eval_batches=1,
                        checkpoint_every=2)
+    return c
+
+
+def shipped_recipe(c, steps, batch_size, learning_rate=1e-3):
+    """Make ``c`` (a 'mid' config of a model trained on scans) the whole recipe of its shipped
+    bundle: clean data (no scan of an evaluation scene), steps, batch and the learning-rate
+    schedule, so that ``python -m experiments.train --config=KIND:mid`` reproduces it."""
+    c.data.root = MID_ROOT
+    c.train.update(steps=steps, batch_size=batch_size, learning_rate=learning_rate,
+                   schedule="warmup_cosine", warmup_steps=200, final_lr_fraction=0.01)
     return c
 
 

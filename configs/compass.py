@@ -16,10 +16,14 @@ def get_config(arg=None):
     c.model = "compass"
     c.model_kwargs = {
         "paper": dict(bandwidths=(24, 24, 24, 24, 24), features=(40, 20, 10, 1)),
-        "mid": dict(bandwidths=(12, 12, 12, 12, 12), features=(40, 20, 10, 1)),
+        # Half the seed's channels: 3.6x faster than 40-20-10 at B = 12 (2.8 against 10.1 ms
+        # per patch, one jitted batch of 256 on 2 cores), for the pair's 6 ms budget.
+        "mid": dict(bandwidths=(12, 12, 12, 12, 12), features=(20, 10, 10, 1)),
         "cpu": dict(bandwidths=(8, 8, 8, 8, 8), features=(16, 8, 4, 1)),
         "tiny": dict(bandwidths=(4, 4, 4, 4, 4), features=(4, 2, 2, 1)),
     }[size]
     if size == "paper":
         c.infer_chunk = common.B24_INFER_CHUNK
+    if size == "mid":
+        common.shipped_recipe(c, steps=6000, batch_size=16)
     return c

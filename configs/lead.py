@@ -22,4 +22,6 @@ def get_config(arg=None):
         "tiny": dict(bandwidths=(4, 4, 4, 4, 4, 4), features=(4, 4, 4, 4, 1)),
     }[size]
     c.model_kwargs.update(common.decoder_kwargs(size))
+    if size == "mid":
+        common.shipped_recipe(c, steps=6000, batch_size=32)
     return c

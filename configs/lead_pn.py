@@ -20,4 +20,6 @@ def get_config(arg=None):
         "tiny": dict(features=(8, 8, 16)),
     }[size]
     c.model_kwargs.update(common.decoder_kwargs(size))
+    if size == "mid":
+        common.shipped_recipe(c, steps=5000, batch_size=32)
     return c

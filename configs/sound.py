@@ -30,4 +30,6 @@ def get_config(arg=None):
     if size == "paper":
         c.infer_chunk = common.B24_INFER_CHUNK
     c.model_kwargs.update(common.decoder_kwargs(size))
+    if size == "mid":
+        common.shipped_recipe(c, steps=3000, batch_size=8)
     return c

@@ -181,6 +181,7 @@ def choice(value, name, options):
 CONFIG_RULES = {
     "train.steps": (int, 1, True), "train.batch_size": (int, 1, True),
     "train.learning_rate": (float, 0, False), "train.log_every": (int, 1, True),
+    "train.warmup_steps": (int, 0, True), "train.final_lr_fraction": (float, 0, True),
     "train.eval_every": (int, 1, True), "train.checkpoint_every": (int, 1, True),
     "train.eval_batches": (int, 1, True), "train.keep_checkpoints": (int, 1, True),
     "train.time_budget_s": (float, 0, True),

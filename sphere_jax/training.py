@@ -25,7 +25,7 @@ from jax.sharding import PartitionSpec as P
 from tqdm import tqdm
 
 from sphere_jax import api, bundle, checks, models, parallel
-from sphere_jax.data import pipeline
+from sphere_jax.data import evaluation_scenes, pipeline
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.prefetch import Prefetch
 
@@ -60,7 +60,13 @@ def build_source(config):
         root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
         return pipeline.ShapeSource(root, d.n_points, config.seed,
                                     d.get("holdout_every", 0))
+    allow = bool(d.get("allow_evaluation_scenes", False))
+    # The entries first (before an RGB-D sequence is fused), then every scan and its origin.
+    evaluation_scenes.check_training_scans(pipeline.root_entries(d.root), allow)
     groups = pipeline.scan_groups(d.root)
+    scans = [p for g in groups for p in g]
+    evaluation_scenes.check_training_scans(
+        scans + [pipeline.scan_folder_label(p) for p in scans], allow)
     return pipeline.PatchSource([p for g in groups for p in g], d.voxel, d.keypoint_leaf,
                                 d.radius, d.n_points, d.min_points, d.val_fraction, config.seed,
                                 groups=[k for k, g in enumerate(groups) for _ in g],
@@ -89,6 +95,23 @@ def get_batch(config, source, step, split="train"):
 # State, steps, checkpoints
 # ----------------------------------------------------------------------------------------------
 
+def learning_rate_schedule(train):
+    """The learning rate as a function of the global step (an optax schedule): constant
+    ``train.learning_rate``, or with ``train.schedule='warmup_cosine'`` a linear warm-up over
+    ``train.warmup_steps`` to it and a cosine decay to ``train.final_lr_fraction`` of it at
+    ``train.steps``. A function of the step alone, so a resumed or continued run (another
+    machine, fresh Adam moments) goes on at the rate the uninterrupted run would have had."""
+    peak = float(train.learning_rate)
+    kind = train.get("schedule", "constant")
+    if kind == "constant":
+        return optax.constant_schedule(peak)
+    if kind == "warmup_cosine":
+        return optax.warmup_cosine_decay_schedule(
+            0.0, peak, int(train.warmup_steps), int(train.steps),
+            peak * float(train.final_lr_fraction))
+    raise checks.ConfigError("config.train.schedule", "'constant' or 'warmup_cosine'", kind)
+
+
 def training_model(config):
     """The module the trainer differentiates: the config's model on the path ``train.fused``
     chooses (spectral domain by default; ``False``: the layer-by-layer reference) with its batch
@@ -114,8 +137,11 @@ def make_steps(config, model, tx, mesh=None):
     """Jitted ``train_step(state, batch) -> (state, metrics)`` and ``eval_step(state, batch) ->
     metrics`` over ``mesh`` (:mod:`sphere_jax.parallel`; default one device): ``state``
     replicated, ``batch`` split on its first axis (:func:`parallel.shard_batch`). ``model``:
-    :func:`training_model`'s, whose batch norms average over the mesh axis."""
+    :func:`training_model`'s, whose batch norms average over the mesh axis. ``tx``: the
+    optimiser's direction (:func:`optimiser`); the step scales it by
+    :func:`learning_rate_schedule` at the state's step."""
     mesh = mesh if mesh is not None else parallel.make_mesh(1)
+    schedule = learning_rate_schedule(config.train)
     rep, rows = P(), P(parallel.AXIS)
     # The outputs are replicated by construction (pmean'd gradients and metrics; batch
     # statistics from pmean'd moments). shard_map's replication typing would also ask every
@@ -138,6 +164,9 @@ def make_steps(config, model, tx, mesh=None):
         grads, metrics, stats = shard(local_grads, in_specs=(rep, rep, rows, rep))(
             state["params"], state["batch_stats"], batch, rng)
         updates, opt_state = tx.update(grads, state["opt_state"], state["params"])
+        lr = schedule(state["step"])
+        updates = jax.tree_util.tree_map(lambda u: -lr * u, updates)
+        metrics = {**metrics, "learning_rate": lr}
         return {"params": optax.apply_updates(state["params"], updates), "batch_stats": stats,
                 "opt_state": opt_state, "step": state["step"] + 1}, metrics
 
@@ -151,6 +180,11 @@ def make_steps(config, model, tx, mesh=None):
             state["params"], state["batch_stats"], batch)
 
     return jax.jit(train_step, donate_argnums=0), jax.jit(eval_step)
+
+
+def optimiser():
+    """Adam's direction, without a learning rate (:func:`make_steps` applies the schedule)."""
+    return optax.scale_by_adam()
 
 
 def checkpoint_manager(workdir, config):
@@ -299,7 +333,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     mesh = parallel.make_mesh(config.train.get("devices", 0) or None)
     parallel.check_batch_size(config.train.batch_size, mesh)
     model = training_model(config)
-    tx = optax.adam(config.train.learning_rate)
+    learning_rate_schedule(config.train)                # a bad schedule fails before any work
+    tx = optimiser()
     state = init_state(config, model, tx, get_batch(config, source, 0))
     train_step, eval_step = make_steps(config, model, tx, mesh)
     mngr = checkpoint_manager(workdir, config)
@@ -356,16 +391,17 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
                 break
     bar.close()
     mngr.wait_until_finished()
-    if last.get("step", config.train.steps) < config.train.steps:     # stopped by the budget
-        config = ml_collections.ConfigDict(config.to_dict())
-        config.train.steps = last["step"]
+    # The bundle records the steps done (fewer than planned when the budget stopped it): a
+    # continued run goes on from there on the same schedule.
+    config = ml_collections.ConfigDict(config.to_dict())
+    config.train.steps_done = int(last.get("step", config.train.steps))
     save_bundle(workdir, config, state, source.statement())
     return state, last
 
 
 # config.data fields added after bundles were first written, with the value those bundles
 # were trained with.
-DATA_ADDED = {"copy_draw": "patch", "copy_jitter": 0.0}
+DATA_ADDED = {"copy_draw": "patch", "copy_jitter": 0.0, "allow_evaluation_scenes": False}
 
 
 def continued_bundle(config):
@@ -379,11 +415,25 @@ def continued_bundle(config):
                                  "run either continues a bundle or fine-tunes one")
     trained = bundle.read_config(path)
     _check_same(config, trained, ("model", "model_kwargs", "data", "seed"), "init_bundle")
-    done = int(trained.train.steps)
+    _check_same(config, trained, SCHEDULE, "init_bundle", section="train")
+    done = steps_done(trained)
     if done >= config.train.steps:
         raise checks.ConfigError(f"train.init_bundle={path!r} has {done} steps done; "
                                  f"train.steps={config.train.steps} must be more")
     return done, bundle.read_variables(path)
+
+
+# What a continued run must share with the bundle it continues: the batches and the schedule.
+SCHEDULE = ("steps", "batch_size", "learning_rate", "schedule", "warmup_steps",
+            "final_lr_fraction")
+# config.train fields added after bundles were first written, with the value those had.
+TRAIN_ADDED = {"schedule": "constant", "warmup_steps": 0, "final_lr_fraction": 1.0}
+
+
+def steps_done(config):
+    """The training steps a bundle's ``config`` has done (``train.steps`` for bundles that
+    ran their plan before ``steps_done`` was recorded)."""
+    return int(config.train.get("steps_done", config.train.steps))
 
 
 def finetuned_bundle(config):
@@ -395,11 +445,15 @@ def finetuned_bundle(config):
     return bundle.read_variables(path)
 
 
-def _check_same(config, trained, keys, field):
-    """ConfigError naming the first of ``keys`` whose value differs between ``config`` and
-    the bundle's ``trained`` config (for a section, only the fields that differ)."""
+def _check_same(config, trained, keys, field, section=None):
+    """ConfigError naming the first of ``keys`` (of ``section``, e.g. 'train') whose value
+    differs between ``config`` and the bundle's ``trained`` config (for a section, only the
+    fields that differ)."""
     path = config.train[field]
     as_dict = lambda c: json.loads(json.dumps(c.to_dict() if hasattr(c, "to_dict") else c))
+    if section is not None:
+        config = config[section]
+        trained = ml_collections.ConfigDict({**TRAIN_ADDED, **trained[section].to_dict()})
     for key in keys:
         mine, theirs = as_dict(config.get(key)), as_dict(trained.get(key))
         if key == "data" and isinstance(theirs, dict):      # written before those fields
@@ -410,8 +464,9 @@ def _check_same(config, trained, keys, field):
                           if mine.get(k) != theirs.get(k)]
                 theirs = {k: theirs.get(k) for k in differ}
                 mine = {k: mine.get(k) for k in differ}
+            name = key if section is None else f"{section}.{key}"
             raise checks.ConfigError(f"train.{field}={path!r} was trained with another "
-                                     f"{key} ({theirs!r}) than this config's ({mine!r})")
+                                     f"{name} ({theirs!r}) than this config's ({mine!r})")
 
 
 def evaluate(config, source, state, eval_step, mesh):
@@ -446,6 +501,8 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
         config.data.copy_draw = "support"
     config.train.init_bundle = config.train.finetune_bundle = ""
     config.train.steps = int(steps)
+    config.train.schedule = "constant"     # a short fine-tune at the bundle's peak rate
+    config.train.pop("steps_done", None)
     for key in ("checkpoint_every", "eval_every", "log_every"):
         config.train[key] = max(1, min(config.train[key], steps))
     if learning_rate:

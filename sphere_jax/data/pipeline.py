@@ -14,7 +14,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import checks, paths
-from sphere_jax.data import augment, fusion, patches, poses
+from sphere_jax.data import augment, evaluation_scenes, fusion, patches, poses
 from sphere_jax.data.readers import io, ply, rgbd
 from sphere_jax.data.generators import synthetic
 
@@ -42,10 +42,33 @@ def find_scans(root):
 
 def scan_groups(roots):
     """Scan files of each entry of a comma-separated list of folders (or scan files), one list
-    per entry; ``embedded`` (or an empty list) stands for the default synthetic scans, so real
-    scans can be added to them: ``embedded,/data/3dmatch/demo``."""
-    return [find_scans(default_scan_root() if r == "embedded" else r)
-            for r in root_entries(roots)]
+    per entry (:func:`resolve_root` reads each entry), so real scans can be added to the
+    synthetic ones: ``embedded,embedded:1,/data/3dmatch/demo``."""
+    return [find_scans(resolve_root(r)) for r in root_entries(roots)]
+
+
+def resolve_root(entry):
+    """The folder or file a ``data.root`` entry names: ``embedded`` the default synthetic
+    rooms, ``embedded:N`` the training rooms of seed N (generated on first use),
+    ``shared/<rel>`` a path under the real scans (``../shared/data``: the same config on
+    every machine), anything else a path."""
+    entry = str(entry)
+    if entry == "embedded" or entry == "embedded:0":
+        return default_scan_root()
+    if entry.startswith("embedded:"):
+        seed = entry[len("embedded:"):]
+        if not seed.isdigit():
+            raise checks.ConfigError("a data.root entry 'embedded:N'", "an integer seed N",
+                                     entry)
+        return synthetic.ensure_training_rooms(int(seed))
+    if entry.startswith("shared/"):
+        found = paths.real_data(*entry[len("shared/"):].split("/"))
+        if found is None:
+            raise checks.MissingError(f"data.root entry {entry!r} is under the real scans, "
+                                      f"which are not here (../shared/data, or "
+                                      f"$SPHERE_JAX_REAL_DATA)")
+        return found
+    return entry
 
 
 def root_entries(roots):
@@ -119,13 +142,16 @@ class PatchSource:
         return len(self.splits["train"])
 
     def statement(self):
-        """What this source trains on, for the bundle: scans per folder, keypoints per split."""
+        """What this source trains on, for the bundle: scans per folder, keypoints per split,
+        and the evaluation scenes among them (empty unless a run was allowed them)."""
         folders = {}
         for path in self.scan_paths:
             folder = scan_folder_label(path)
             folders[folder] = folders.get(folder, 0) + 1
         return {"kind": "scans", "folders": folders,
-                "keypoints": {k: int(len(v)) for k, v in self.splits.items()}}
+                "keypoints": {k: int(len(v)) for k, v in self.splits.items()},
+                "evaluation_scenes": evaluation_scenes.scenes_of(
+                    list(self.scan_paths) + list(folders))}
 
     def draw(self, rng: np.random.Generator, batch_size, split="train"):
         """``[B, 2]`` (scan, point index) keypoints of one batch of ``split``."""

@@ -349,6 +349,25 @@ def ensure_default_data(seed=0, out_dir=None):
     return out_dir
 
 
+def ensure_training_rooms(seed, n_scenes=2):
+    """More synthetic rooms for training (``data.root`` entry ``embedded:SEED``): ``n_scenes``
+    rooms of seed ``seed`` in the 3DMatch layout, generated on first use beside the default
+    data (rooms only: no shapes or table tops). Returns the folder of the scenes."""
+    seed = int(seed)
+    out_dir = os.path.join(paths.cache_root(), f"rooms-v{DATA_VERSION}-seed{seed}")
+    done = os.path.join(out_dir, "summary.json")
+    if not os.path.isfile(done):
+        tmp = f"{out_dir}.partial{os.getpid()}"
+        summary = {"seed": seed, "scenes": [
+            make_scene(os.path.join(tmp, "3dmatch"), f"synth-room-s{seed}-{k}", seed * 1000 + k)
+            for k in range(n_scenes)]}
+        summary["fingerprints"] = {"3dmatch": fingerprint(os.path.join(tmp, "3dmatch"))}
+        io.atomic_write(os.path.join(tmp, "summary.json"), json.dumps(summary, indent=1).encode())
+        os.makedirs(os.path.dirname(out_dir) or ".", exist_ok=True)
+        _move_into_place(tmp, out_dir, "summary.json")
+    return os.path.join(out_dir, "3dmatch")
+
+
 def _move_into_place(tmp, out_dir, last_file):
     """Rename the finished folder ``tmp`` to ``out_dir``. Two processes started on an empty
     cache both generate; the one that finishes second keeps the first one's copy (the same

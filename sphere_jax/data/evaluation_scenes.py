@@ -1,0 +1,92 @@
+"""The evaluation scenes, and the rule that training never sees them.
+
+Every figure this project publishes is measured on these scenes; a model trained on any scan of
+them would be scored on its own training geometry. Each scene lists the sources known to hold
+it, as paths relative to the real scans' root (``../shared/data``) — a folder covers every
+scan under it, a file itself — and folder or file names that identify it wherever a copy
+lives (a user's own download of 3DMatch, say).
+
+:func:`check_training_scans` is what training calls on its scan files: any match is refused
+unless the run says it is an evaluation-scene experiment (``data.allow_evaluation_scenes``),
+and then the bundle's training statement names the scenes (:func:`scenes_of`).
+"""
+from __future__ import annotations
+
+import os
+from typing import NamedTuple
+
+from sphere_jax import checks, paths
+
+
+class Scene(NamedTuple):
+    name: str
+    why: str                      # what the scene is evaluated for
+    sources: tuple[str, ...]      # under the real scans' root: folders or files
+    names: tuple[str, ...]        # path components that identify it anywhere
+
+
+EVALUATION_SCENES = (
+    Scene("redkitchen", "3DMatch / 3DLoMatch registration and LRF repeatability",
+          ("3dmatch/7-scenes-redkitchen", "3dmatch/demo_fullres", "rgbd/3dmatch_toolbox"),
+          # demo_fullres holds redkitchen fragments 0 and 1; the toolbox's RGB-D frames are
+          # redkitchen seq-01 frames 8-57, from which fragment 0 was fused.
+          ("7-scenes-redkitchen", "redkitchen", "demo_fullres", "3dmatch_toolbox")),
+    Scene("bunny", "LRF repeatability and registration at object scale",
+          ("stanford/bunny",), ("bunny",)),
+    Scene("sun3d-home_at", "a 3DMatch test scene: open3d's single scans are two of its views",
+          # frag_115 registers onto home_at fragment 41 (79 % within 2 cm) and fragment.pcd
+          # overlaps frag_115 by 82 %.
+          ("open3d_testdata/ColoredICP/frag_115.ply", "open3d_testdata/fragment.pcd"),
+          ("sun3d-home_at", "home_at")),
+)
+
+
+class EvaluationSceneError(checks.ConfigError):
+    """Training data that holds an evaluation scene."""
+
+
+def scene_of(path) -> Scene | None:
+    """The evaluation scene a scan file, folder or label (``shared/<rel>``, as bundles state
+    their folders) belongs to, or None."""
+    text = str(path).replace(os.sep, "/")
+    rel = None
+    if text.startswith("shared/"):
+        rel = text[len("shared/"):]
+    else:
+        root = paths.real_data_root()
+        if root:
+            full, root = os.path.abspath(text), os.path.abspath(root)
+            if os.path.commonpath([full, root]) == root:
+                rel = os.path.relpath(full, root).replace(os.sep, "/")
+    parts = [p.lower() for p in text.split("/")]
+    for scene in EVALUATION_SCENES:
+        if rel is not None and any(rel == s or rel.startswith(s + "/") for s in scene.sources):
+            return scene
+        if any(n in parts or any(p.startswith(n + "-") or p.startswith(n + ".")
+                                 for p in parts) for n in scene.names):
+            return scene
+    return None
+
+
+def scenes_of(paths_or_labels) -> list[str]:
+    """Names of the evaluation scenes among ``paths_or_labels`` (sorted, each once)."""
+    return sorted({s.name for p in paths_or_labels if (s := scene_of(p)) is not None})
+
+
+def check_training_scans(scan_labels, allow=False) -> list[str]:
+    """Refuse training scans of an evaluation scene; ``scan_labels``: each scan's path and
+    the label of where it came from (a fused RGB-D sequence's folder, a pack's origin).
+    Returns the scenes found (empty unless ``allow``)."""
+    found = {}
+    for label in scan_labels:
+        scene = scene_of(label)
+        if scene is not None:
+            found.setdefault(scene.name, str(label))
+    if found and not allow:
+        listed = "; ".join(f"{name} ({example})" for name, example in sorted(found.items()))
+        raise EvaluationSceneError(
+            f"data.root holds scans of evaluation scenes: {listed}. Training and evaluation "
+            f"never share a scene; drop those entries, or set "
+            f"data.allow_evaluation_scenes=True for an evaluation-scene experiment (its bundle "
+            f"then records the scenes)")
+    return sorted(found)
