@@ -11,6 +11,7 @@ import contextlib
 import importlib.util
 import os
 import re
+import shlex
 import sys
 
 from absl import app, flags
@@ -29,8 +30,18 @@ def fail(message, status=USAGE):
     sys.exit(status)
 
 
+_ARGV = []        # the command line as typed (run() resolves config names in sys.argv)
+
+
+def command(module):
+    """The command line that started this main, as typed: ``python -m MODULE ARGS``."""
+    args = (_ARGV or sys.argv)[1:]
+    return " ".join(["python -m", module] + [shlex.quote(a) for a in args])
+
+
 def run(main):
     """``app.run(main)`` with config names resolved and errors as one line."""
+    _ARGV[:] = sys.argv
     try:
         sys.argv = resolve_config_arg(sys.argv)
         specs = [a.split("=", 1)[1] for a in sys.argv if a.startswith("--config=")]

@@ -47,7 +47,8 @@ def main(_):
         from sphere_jax import parallel
         parallel.initialize(f.coordinator, f.num_processes, f.process_id)
     start = time.perf_counter()
-    _, md = tasks.run(config, workdir)
+    command = cli.command("experiments.evaluate")
+    _, md = tasks.run(config, workdir, command=command)
     if md:                                     # in a multi-process run: process 0 only
         print(md)
         print(f"written to {workdir} in {time.perf_counter() - start:.0f} s")

@@ -54,7 +54,8 @@ def main(_):
     if f.distributed or f.coordinator or f.num_processes is not None:
         parallel.initialize(f.coordinator, f.num_processes, f.process_id)
     workdir = f.workdir or os.path.join("runs", f"{config.model}_{config.size}")
-    _, last = training.train_and_evaluate(config, workdir)
+    command = cli.command("experiments.train")
+    _, last = training.train_and_evaluate(config, workdir, command=command)
     print(f"finished in {workdir}: " + ", ".join(f"{k}={v:.4g}" for k, v in last.items()
                                                   if isinstance(v, float)))
 

@@ -24,7 +24,7 @@ import orbax.checkpoint as ocp
 from jax.sharding import PartitionSpec as P
 from tqdm import tqdm
 
-from sphere_jax import api, bundle, checks, models, parallel
+from sphere_jax import api, bundle, checks, model_card, models, parallel
 from sphere_jax.data import evaluation_scenes, pipeline
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.prefetch import Prefetch
@@ -313,7 +313,7 @@ def save_bundle(workdir, config, state, training_data=None):
 # ----------------------------------------------------------------------------------------------
 
 def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress=True,
-                       init_variables=None):
+                       init_variables=None, command=None):
     """Train (resuming from the newest checkpoint in ``workdir``, with any device count),
     evaluate, write a bundle. ``init_variables`` (params and batch_stats, e.g. from a bundle)
     start a fresh run from trained weights (test-time adaptation), as ``train.finetune_bundle``
@@ -322,7 +322,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
 
     ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
     minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
-    bundle records the steps done, so the same command with a later budget resumes."""
+    bundle records the steps done, so the same command with a later budget resumes.
+    ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`)."""
     checks.config_values(config)
     os.makedirs(workdir, exist_ok=True)
     claim_workdir(workdir, config)
@@ -395,7 +396,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     # continued run goes on from there on the same schedule.
     config = ml_collections.ConfigDict(config.to_dict())
     config.train.steps_done = int(last.get("step", config.train.steps))
-    save_bundle(workdir, config, state, source.statement())
+    path = save_bundle(workdir, config, state, source.statement())
+    if main_host:
+        model_card.write(path, metrics_path, command)
     return state, last
 
 

@@ -48,7 +48,7 @@ def test_gpu_script_brings_back_a_bundle_stopped_by_its_budget(scans, tmp_path):
         t.extractall(tmp_path / "back", filter="data")
     b = api.load_bundle(tmp_path / "back" / "lead_pn" / "bundle")
     assert b.config.model == "lead_pn"
-    assert b.config.train.steps == 1 < 50              # the budget, not the steps, ended it
+    assert b.config.train.steps_done == 1 < b.config.train.steps == 50    # the budget ended it
     steps = [json.loads(x)["step"] for x in
              (tmp_path / "back" / "lead_pn" / "metrics.jsonl").read_text().splitlines()]
     assert steps == [1]

@@ -42,11 +42,10 @@ def test_one_step_of_every_config(name, small_root, tmp_path):
 
 
 def test_loss_decreases_on_a_fixed_batch(small_root):
-    config = tiny("lead", small_root)
+    config = tiny("lead", small_root, learning_rate=3e-3)
     source = training.build_source(config)
     model = training.training_model(config)
-    import optax
-    tx = optax.adam(3e-3)
+    tx = training.optimiser()
     batch = training.get_batch(config, source, 0)
     state = training.init_state(config, model, tx, batch)
     step, _ = training.make_steps(config, model, tx)
@@ -80,12 +79,13 @@ def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_roo
     lines = (tmp_path / "metrics.jsonl").read_text().splitlines()
     assert [json.loads(ln)["step"] for ln in lines] == [1]
     assert "val_loss" in json.loads(lines[0])
-    assert bundle.read_config(str(tmp_path / "bundle")).train.steps == 1
+    stopped = bundle.read_config(str(tmp_path / "bundle"))
+    assert training.steps_done(stopped) == 1 and stopped.train.steps == 3    # done, planned
     c.train.time_budget_s = 0.0
     training.train_and_evaluate(c, str(tmp_path), progress=False)
     steps = [json.loads(ln)["step"] for ln in (tmp_path / "metrics.jsonl").read_text().splitlines()]
     assert steps == [1, 2, 3]
-    assert bundle.read_config(str(tmp_path / "bundle")).train.steps == 3
+    assert training.steps_done(bundle.read_config(str(tmp_path / "bundle"))) == 3
 
 
 def _max_change(bundle_a, bundle_b):

@@ -26,7 +26,6 @@ MODELS = ("compass", "lead", "sound")
 def measure(name: str, size: str, fused: bool, devices: int, steps: int) -> dict:
     """One record, in this process (which must see ``devices`` local devices)."""
     import jax
-    import optax
 
     from sphere_jax import parallel, training
     from sphere_jax.data.prefetch import Prefetch
@@ -37,7 +36,7 @@ def measure(name: str, size: str, fused: bool, devices: int, steps: int) -> dict
     mesh = parallel.make_mesh(devices)
     parallel.check_batch_size(config.train.batch_size, mesh)
     model = training.training_model(config)
-    tx = optax.adam(config.train.learning_rate)
+    tx = training.optimiser()
     state = parallel.replicate(
         training.init_state(config, model, tx, training.get_batch(config, source, 0)), mesh)
     step_fn, _ = training.make_steps(config, model, tx, mesh)

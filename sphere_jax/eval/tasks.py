@@ -7,9 +7,14 @@ A new task is a module with such a ``run`` and one line in :data:`TASKS`.
 """
 from __future__ import annotations
 
+import datetime
 import importlib
+import json
+import os
+import time
 
 from sphere_jax import checks
+from sphere_jax.data.readers import io
 
 TASKS = {
     "registration": "sphere_jax.eval.registration",      # seed 4.1-4.4: FMR, inlier ratio, RR
@@ -29,9 +34,46 @@ def task_module(name):
     return importlib.import_module(TASKS[name])
 
 
-def run(config, workdir, progress=True):
+RUN_RECORD = "run.json"
+
+
+def run(config, workdir, progress=True, command=None):
     """Run the evaluation ``config.task``; returns ``(rows, markdown)``. Config values are
-    checked first (:func:`sphere_jax.checks.config_values`)."""
+    checked first (:func:`sphere_jax.checks.config_values`). ``workdir/run.json`` records
+    what produced the tables: the command, the config, the bundles (folder and steps done),
+    the date and the wall time (``experiments.publish`` stamps the docs' tables with it)."""
     module = task_module(config.task)
     checks.config_values(config)
-    return module.run(config, workdir, progress)
+    start = time.perf_counter()
+    rows, md = module.run(config, workdir, progress)
+    if md:                                        # in a multi-process run: process 0 only
+        record = {"command": command, "task": config.task, "config": config.to_dict(),
+                  "bundles": bundles_used(config), "date": datetime.date.today().isoformat(),
+                  "wall_s": round(time.perf_counter() - start, 1)}
+        io.atomic_write(os.path.join(workdir, RUN_RECORD),
+                        json.dumps(record, indent=1, default=str).encode())
+    return rows, md
+
+
+def bundles_used(config):
+    """Kind -> ``{'path', 'steps_done'}`` of the bundles an evaluation config names."""
+    from sphere_jax import bundle, paths
+    out = {}
+    if "bundles" not in config:
+        return out
+    chosen = dict(config.bundles.to_dict())
+    if config.get("bundle") and bundle.is_bundle(config.bundle):
+        chosen[bundle.read_config(config.bundle).model] = config.bundle
+    names = [m.strip() for m in str(config.get("methods", "")).split(",") if m.strip()]
+    if names:                                         # only the kinds the methods use
+        from sphere_jax.eval.methods import BUNDLE_OF
+        needed = {k for m in names for k in BUNDLE_OF.get(m, ())}
+        chosen = {k: v for k, v in chosen.items() if k in needed}
+    for kind, path in sorted(chosen.items()):
+        path = paths.shipped_bundle(path) if path and not os.path.isdir(str(path)) else path
+        if path and bundle.is_bundle(path):
+            c = bundle.read_config(path)
+            inside = not paths.relative(path).startswith("..")
+            out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
+                         "steps_done": int(c.train.get("steps_done", c.train.steps))}
+    return out

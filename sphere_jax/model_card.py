@@ -1,0 +1,160 @@
+"""A bundle's model card, generated from the bundle's own files, never written by hand.
+
+``bundle/MODEL_CARD.md`` and ``bundle/validation_curve.png`` are rendered from
+
+* ``config.json`` and ``training_data.json`` (the network, the recipe, the data),
+* ``metrics.jsonl`` (the training log: steps, wall time, the validation curve), which
+  training copies into the bundle, and
+* ``evaluations.json``: the figures evaluations add with :func:`add_evaluation` (a table, the
+  command and the date of the run that produced it).
+
+Training calls :func:`write` when it writes a bundle; evaluations call :func:`add_evaluation`,
+which renders the card again. ``python -m experiments.model_card BUNDLE`` re-renders one.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+
+from sphere_jax import bundle
+
+CARD = "MODEL_CARD.md"
+CURVE = "validation_curve.png"
+METRICS = "metrics.jsonl"
+EVALUATIONS = "evaluations.json"
+
+
+def read_metrics(path) -> list[dict]:
+    """The lines of a ``metrics.jsonl`` ([] when there is none)."""
+    if not os.path.isfile(path):
+        return []
+    with open(path) as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
+def wall_time_s(lines, batch_size) -> float:
+    """Seconds the training loop ran, from the log itself: each line's patches per second
+    covers the patches since the line before."""
+    total, last = 0.0, 0
+    for line in lines:
+        pps = line.get("patches_per_s") or 0
+        if pps > 0:
+            total += (line["step"] - last) * batch_size / pps
+        last = line["step"]
+    return total
+
+
+def validation_curve(lines):
+    """``(steps, {metric: values})`` of the validation metrics in the log."""
+    rows = [ln for ln in lines if "val_loss" in ln]
+    keys = sorted({k for ln in rows for k in ln if k.startswith("val_")})
+    return [ln["step"] for ln in rows], {k: [ln.get(k) for ln in rows] for k in keys}
+
+
+def plot_curve(lines, path, title):
+    """The training and validation loss against the step, as a PNG at ``path``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    steps, val = validation_curve(lines)
+    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=100)
+    ax.plot([ln["step"] for ln in lines], [ln["loss"] for ln in lines], lw=0.8, alpha=0.6,
+            label="training loss (batch)")
+    if steps:
+        ax.plot(steps, val["val_loss"], "o-", lw=1.5, label="validation loss")
+    ax.set_yscale("log")
+    ax.set_xlabel("step")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    tmp = path + ".tmp.png"
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def add_evaluation(bundle_dir, name, table_markdown, command, date=None):
+    """Record an evaluation's figures for this bundle (replacing an earlier run of ``name``)
+    and render the card again."""
+    path = os.path.join(str(bundle_dir), EVALUATIONS)
+    evaluations = {}
+    if os.path.isfile(path):
+        with open(path) as f:
+            evaluations = json.load(f)
+    evaluations[name] = {"command": command, "table": table_markdown,
+                         "date": date or datetime.date.today().isoformat()}
+    bundle.write_json(path, json.dumps(evaluations, indent=1, sort_keys=True))
+    render(bundle_dir)
+
+
+def write(bundle_dir, metrics_path, command=None):
+    """Copy the training log into the bundle, note the command, render the card."""
+    bundle_dir = str(bundle_dir)
+    if metrics_path and os.path.isfile(metrics_path) and \
+            os.path.abspath(metrics_path) != os.path.abspath(os.path.join(bundle_dir, METRICS)):
+        with open(metrics_path) as f:
+            bundle.write_json(os.path.join(bundle_dir, METRICS), f.read())
+    if command:
+        bundle.write_json(os.path.join(bundle_dir, "command.txt"), command.strip() + "\n")
+    return render(bundle_dir)
+
+
+def render(bundle_dir):
+    """Write ``MODEL_CARD.md`` (and the curve's PNG) from the bundle's files."""
+    bundle_dir = str(bundle_dir)
+    config = bundle.read_config(bundle_dir)
+    data = bundle.read_training_data(bundle_dir)
+    lines = read_metrics(os.path.join(bundle_dir, METRICS))
+    command_file = os.path.join(bundle_dir, "command.txt")
+    command = open(command_file).read().strip() if os.path.isfile(command_file) else None
+    train = config.train
+    done = int(train.get("steps_done", train.steps))
+    out = [f"# {config.model} ({config.get('size', '')})", ""]
+    out += ["Generated from this bundle's files by `sphere_jax.model_card`; do not edit.", ""]
+    out += ["## Training", ""]
+    if command:
+        out += ["```bash", command, "```", ""]
+    kwargs = json.dumps(config.get("model_kwargs", {}).to_dict()
+                        if hasattr(config.get("model_kwargs", {}), "to_dict")
+                        else config.get("model_kwargs", {}))
+    out += [f"- network: `{config.model}` {kwargs}"]
+    sched = train.get("schedule", "constant")
+    rate = f"{train.learning_rate:g}"
+    if sched == "warmup_cosine":
+        rate += (f", {train.warmup_steps} warm-up steps, cosine decay to "
+                 f"{train.final_lr_fraction:g}× at step {train.steps}")
+    out += [f"- steps: {done} of {train.steps} planned × batch {train.batch_size}; "
+            f"learning rate {rate} (Adam)"]
+    if lines:
+        out += [f"- wall time of the training loop: "
+                f"{wall_time_s(lines, train.batch_size) / 60:.1f} min"]
+    folders = data.get("folders", {})
+    out += ["- data: " + ", ".join(f"`{k}` ({v} scans)" if v is not None else f"`{k}`"
+                                   for k, v in folders.items())]
+    if "keypoints" in data:
+        out += [f"- keypoints: {data['keypoints'].get('train')} training, "
+                f"{data['keypoints'].get('val')} held out for the validation loss"]
+    scenes = data.get("evaluation_scenes", [])
+    out += [f"- evaluation scenes in the training data: {', '.join(scenes) or 'none'}"]
+    steps, val = validation_curve(lines)
+    if steps:
+        out += ["", "## Validation curve", "", f"![validation curve]({CURVE})", ""]
+        keys = list(val)
+        out += ["| step | " + " | ".join(keys) + " |", "|---" * (len(keys) + 1) + "|"]
+        for i, s in enumerate(steps):
+            out += [f"| {s} | " + " | ".join(f"{val[k][i]:.4g}" if val[k][i] is not None
+                                              else "" for k in keys) + " |"]
+        plot_curve(lines, os.path.join(bundle_dir, CURVE),
+                   f"{config.model}:{config.get('size', '')}, {done} steps")
+    evaluations_path = os.path.join(bundle_dir, EVALUATIONS)
+    if os.path.isfile(evaluations_path):
+        with open(evaluations_path) as f:
+            evaluations = json.load(f)
+        out += ["", "## Evaluations", ""]
+        for name, ev in sorted(evaluations.items()):
+            out += [f"### {name}", "", f"{ev['date']}:", "", "```bash", ev["command"], "```",
+                    "", ev["table"].strip(), ""]
+    bundle.write_json(os.path.join(bundle_dir, CARD), "\n".join(out).rstrip() + "\n")
+    return os.path.join(bundle_dir, CARD)

@@ -1,0 +1,55 @@
+"""Model cards and published tables are generated from the runs' own files: a trained bundle's
+card states its command, steps, data and validation curve; an evaluation's run record, the
+docs' section, the README's headline block and the cards' evaluation sections follow it."""
+import csv
+import json
+import os
+
+from configs import eval_registration, lead
+from experiments import publish
+from sphere_jax import model_card, training
+from sphere_jax.eval import tasks
+
+README = "# x\n\nabove\n\n<!-- headline:begin -->\nold\n<!-- headline:end -->\n\nbelow\n"
+
+
+def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
+    c = lead.get_config("tiny")
+    c.train.update(steps=2, log_every=1, eval_every=1, schedule="warmup_cosine",
+                   warmup_steps=1, final_lr_fraction=0.1)
+    training.train_and_evaluate(c, str(tmp_path / "w"), progress=False,
+                                command="python -m experiments.train --config=lead:tiny")
+    path = tmp_path / "w" / "bundle"
+    card = (path / model_card.CARD).read_text()
+    assert "python -m experiments.train --config=lead:tiny" in card
+    assert "steps: 2 of 2 planned × batch 4" in card and "cosine decay to 0.1×" in card
+    assert "synth-room-0` (12 scans)" in card and "evaluation scenes in the training data: none" in card
+    # The validation table has one row per evaluated step, with the logged figures.
+    logged = [json.loads(ln) for ln in (tmp_path / "w" / "metrics.jsonl").read_text().splitlines()]
+    assert [ln["step"] for ln in logged] == [1, 2]
+    assert f"| 2 | {logged[-1]['val_chamfer']:.4g} |" in card
+    assert (path / model_card.CURVE).stat().st_size > 5000
+    assert (path / model_card.METRICS).read_text() == (tmp_path / "w" / "metrics.jsonl").read_text()
+
+    ev = eval_registration.get_config("tiny")
+    ev.methods = "fpfh,lead"
+    ev.bundles.lead = str(path)
+    tasks.run(ev, str(tmp_path / "ev"), progress=False, command="python -m experiments.evaluate X")
+    record = json.loads((tmp_path / "ev" / tasks.RUN_RECORD).read_text())
+    assert record["command"] == "python -m experiments.evaluate X"
+    assert list(record["bundles"]) == ["lead"] and record["bundles"]["lead"]["steps_done"] == 2
+
+    readme = tmp_path / "README.md"
+    readme.write_text(README)
+    out = publish.publish([str(tmp_path / "ev")], headline=str(tmp_path / "ev"),
+                          results=str(tmp_path / "docs" / "results.md"), readme=str(readme))
+    with open(tmp_path / "ev" / "results.csv") as f:
+        lead_mean = next(r for r in csv.DictReader(f) if r["method"] == "lead"
+                         and r["scene"] == "mean")
+    text = readme.read_text()
+    assert "old" not in text and text.startswith("# x\n\nabove") and text.endswith("below\n")
+    assert f"| lead | {float(lead_mean['fmr']):.2f} | {float(lead_mean['inlier_ratio']):.3f} |" \
+        in text
+    assert "`python -m experiments.evaluate X`" in open(out).read()
+    card = (path / model_card.CARD).read_text()
+    assert "## Evaluations" in card and "python -m experiments.evaluate X" in card
