@@ -16,22 +16,13 @@ best 0.929 with F at 0.64 of A's time.
 """
 import ml_collections
 
-from configs import eval_registration, lead
+from configs import common, eval_registration, lead
 from sphere_jax import paths
 
-# Folders of the shipped bundles' training scans (no redkitchen fragment, no bunny).
-TRAINING_SCANS = ("embedded", "rgbd/3dmatch_toolbox/rgbd-frames", "open3d_testdata/Feature",
-                  "open3d_testdata/ColoredICP", "open3d_testdata/fragment.pcd")
-TRAINING_WEIGHTS = "0.5,0.35,0.05,0.05,0.05"
-
-
-def training_root():
-    """``data.root`` of the training scans: the real ones beside the embedded when present."""
-    real = paths.real_data_root()
-    if real is None:
-        return "embedded", ""
-    return ",".join(f if f == "embedded" else f"{real}/{f}" for f in TRAINING_SCANS), \
-        TRAINING_WEIGHTS
+def training_root(size=""):
+    """``data.root`` of the variants' training scans: the shipped recipe's rooms (one seed's
+    at 'tiny' size)."""
+    return ("embedded:1" if size == "tiny" else common.MID_ROOT), ""
 
 
 def _variant(description, **model):
@@ -47,7 +38,7 @@ def get_config(arg=None):
     train_size = "tiny" if size == "tiny" else "mid"  # LEAD 'mid': decoder, points, data
     c.budget_steps = {"": 600, "quick": 150, "tiny": 2}[size]
     c.batch_size = {"": 16, "quick": 16, "tiny": 4}[size]
-    root, weights = training_root()
+    root, weights = training_root(size)
     c.train_data = ml_collections.ConfigDict(dict(root=root, root_weights=weights))
     c.forward_batch = 25
     c.evaluation = eval_registration.get_config("tiny" if size == "tiny" else "")

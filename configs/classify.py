@@ -18,6 +18,7 @@ def get_config(arg=None):
     c = common.base(size)
     c.model = "classify"
     c.orient_bundle = ""              # a whole-shape Compass bundle: shapes in its frames
+    c.data.root = ""                 # the embedded shape set, or a ModelNet40 folder
     c.data.n_points = {"paper": 2048, "mid": 1024, "cpu": 512, "tiny": 64}[size]
     c.data.rotate = False            # train in canonical pose
     c.data.holdout_every = 0         # k > 0: a set without test list tests on each k-th shape

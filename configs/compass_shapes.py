@@ -14,11 +14,11 @@ from configs import compass
 def get_config(arg=None):
     c = compass.get_config(arg)
     c.data.shapes = True
+    c.data.root = ""           # '': the embedded shape set; or a ModelNet40 folder
     c.data.n_points = {"paper": 2048, "mid": 1024, "cpu": 512, "tiny": 64}[c.size]
     c.data.holdout_every = 0   # k > 0: as in ``classify``, each k-th shape is kept for testing
     if c.size == "mid":        # not Compass's scan recipe: the seed's channels, whole shapes
         c.model_kwargs.features = (40, 20, 10, 1)
-        c.data.root = ""
         c.train.update(steps=20_000, batch_size=8, schedule="constant", warmup_steps=0,
                        final_lr_fraction=1.0)
     return c

@@ -62,7 +62,8 @@ def build_source(config):
                                     d.get("holdout_every", 0))
     allow = bool(d.get("allow_evaluation_scenes", False))
     # The entries first (before an RGB-D sequence is fused), then every scan and its origin.
-    evaluation_scenes.check_training_scans(pipeline.root_entries(d.root), allow)
+    evaluation_scenes.check_training_scans(
+        [pipeline.entry_path(e) for e in pipeline.root_entries(d.root)], allow)
     groups = pipeline.scan_groups(d.root)
     scans = [p for g in groups for p in g]
     evaluation_scenes.check_training_scans(

@@ -2,9 +2,11 @@
 
 Every figure this project publishes is measured on these scenes; a model trained on any scan of
 them would be scored on its own training geometry. Each scene lists the sources known to hold
-it, as paths relative to the real scans' root (``../shared/data``) — a folder covers every
-scan under it, a file itself — and folder or file names that identify it wherever a copy
-lives (a user's own download of 3DMatch, say).
+it, as portable labels (:func:`sphere_jax.paths.portable`: ``shared/<rel>`` under the real
+scans, ``embedded/<rel>`` under the synthetic data cache) — a folder covers every scan under
+it, a file itself — and folder or file names that identify it wherever a copy lives (a user's
+own download of 3DMatch, say). The embedded default rooms (seed 0) are the main job's
+evaluation scenes; training draws its synthetic rooms from other seeds (``embedded:N``).
 
 :func:`check_training_scans` is what training calls on its scan files: any match is refused
 unless the run says it is an evaluation-scene experiment (``data.allow_evaluation_scenes``),
@@ -16,28 +18,32 @@ import os
 from typing import NamedTuple
 
 from sphere_jax import checks, paths
+from sphere_jax.data.generators import synthetic
 
 
 class Scene(NamedTuple):
     name: str
     why: str                      # what the scene is evaluated for
-    sources: tuple[str, ...]      # under the real scans' root: folders or files
+    sources: tuple[str, ...]      # portable labels of folders or files
     names: tuple[str, ...]        # path components that identify it anywhere
 
 
 EVALUATION_SCENES = (
     Scene("redkitchen", "3DMatch / 3DLoMatch registration and LRF repeatability",
-          ("3dmatch/7-scenes-redkitchen", "3dmatch/demo_fullres", "rgbd/3dmatch_toolbox"),
+          ("shared/3dmatch/7-scenes-redkitchen", "shared/3dmatch/demo_fullres",
+           "shared/rgbd/3dmatch_toolbox"),
           # demo_fullres holds redkitchen fragments 0 and 1; the toolbox's RGB-D frames are
           # redkitchen seq-01 frames 8-57, from which fragment 0 was fused.
           ("7-scenes-redkitchen", "redkitchen", "demo_fullres", "3dmatch_toolbox")),
     Scene("bunny", "LRF repeatability and registration at object scale",
-          ("stanford/bunny",), ("bunny",)),
+          ("shared/stanford/bunny",), ("bunny",)),
     Scene("sun3d-home_at", "a 3DMatch test scene: open3d's single scans are two of its views",
           # frag_115 registers onto home_at fragment 41 (79 % within 2 cm) and fragment.pcd
           # overlaps frag_115 by 82 %.
-          ("open3d_testdata/ColoredICP/frag_115.ply", "open3d_testdata/fragment.pcd"),
+          ("shared/open3d_testdata/ColoredICP/frag_115.ply", "shared/open3d_testdata/fragment.pcd"),
           ("sun3d-home_at", "home_at")),
+    Scene("embedded rooms", "the main job's registration benchmark (eval_registration:quick)",
+          (f"embedded/{os.path.basename(synthetic.default_data_dir(0))}/3dmatch",), ()),
 )
 
 
@@ -49,18 +55,12 @@ def scene_of(path) -> Scene | None:
     """The evaluation scene a scan file, folder or label (``shared/<rel>``, as bundles state
     their folders) belongs to, or None."""
     text = str(path).replace(os.sep, "/")
-    rel = None
-    if text.startswith("shared/"):
-        rel = text[len("shared/"):]
-    else:
-        root = paths.real_data_root()
-        if root:
-            full, root = os.path.abspath(text), os.path.abspath(root)
-            if os.path.commonpath([full, root]) == root:
-                rel = os.path.relpath(full, root).replace(os.sep, "/")
+    label = text if text.startswith(("shared/", "embedded/")) else \
+        paths.portable(text).replace(os.sep, "/")
     parts = [p.lower() for p in text.split("/")]
     for scene in EVALUATION_SCENES:
-        if rel is not None and any(rel == s or rel.startswith(s + "/") for s in scene.sources):
+        if any(label == s or label.startswith(s + "/") or label.startswith(s + " ")
+               for s in scene.sources):
             return scene
         if any(n in parts or any(p.startswith(n + "-") or p.startswith(n + ".")
                                  for p in parts) for n in scene.names):

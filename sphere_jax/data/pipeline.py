@@ -56,11 +56,25 @@ def resolve_root(entry):
     if entry == "embedded" or entry == "embedded:0":
         return default_scan_root()
     if entry.startswith("embedded:"):
-        seed = entry[len("embedded:"):]
-        if not seed.isdigit():
-            raise checks.ConfigError("a data.root entry 'embedded:N'", "an integer seed N",
-                                     entry)
-        return synthetic.ensure_training_rooms(int(seed))
+        return synthetic.ensure_training_rooms(_rooms_seed(entry))
+    return entry_path(entry)
+
+
+def _rooms_seed(entry):
+    seed = entry[len("embedded:"):]
+    if not seed.isdigit():
+        raise checks.ConfigError("a data.root entry 'embedded:N'", "an integer seed N", entry)
+    return int(seed)
+
+
+def entry_path(entry):
+    """Where a ``data.root`` entry's scans are (or will be, for synthetic data not yet
+    generated): :func:`resolve_root` without generating anything."""
+    entry = str(entry)
+    if entry == "embedded" or entry == "embedded:0":
+        return os.path.join(synthetic.default_data_dir(0), "3dmatch")
+    if entry.startswith("embedded:"):
+        return synthetic.training_rooms_dir(_rooms_seed(entry))
     if entry.startswith("shared/"):
         found = paths.real_data(*entry[len("shared/"):].split("/"))
         if found is None:

@@ -349,12 +349,17 @@ def ensure_default_data(seed=0, out_dir=None):
     return out_dir
 
 
+def training_rooms_dir(seed):
+    """The 3DMatch-layout folder of the training rooms of ``seed`` (:func:`ensure_training_rooms`)."""
+    return os.path.join(paths.cache_root(), f"rooms-v{DATA_VERSION}-seed{int(seed)}", "3dmatch")
+
+
 def ensure_training_rooms(seed, n_scenes=2):
     """More synthetic rooms for training (``data.root`` entry ``embedded:SEED``): ``n_scenes``
     rooms of seed ``seed`` in the 3DMatch layout, generated on first use beside the default
     data (rooms only: no shapes or table tops). Returns the folder of the scenes."""
     seed = int(seed)
-    out_dir = os.path.join(paths.cache_root(), f"rooms-v{DATA_VERSION}-seed{seed}")
+    out_dir = os.path.dirname(training_rooms_dir(seed))
     done = os.path.join(out_dir, "summary.json")
     if not os.path.isfile(done):
         tmp = f"{out_dir}.partial{os.getpid()}"
