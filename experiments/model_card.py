@@ -1,6 +1,7 @@
 """Render a bundle's model card again from its files (``sphere_jax.model_card``).
 
     python -m experiments.model_card BUNDLE [--metrics=W/metrics.jsonl] [--command="..."]
+    python -m experiments.model_card --index       # sphere_jax/weights/README.md
 
 ``--metrics`` copies a training log into the bundle first and ``--command`` records the command
 that trained it (for a bundle written before cards existed).
@@ -14,13 +15,21 @@ from experiments import cli
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("bundle", help="a bundle folder (the 'bundle' a training run writes)")
+    parser.add_argument("bundle", nargs="?",
+                        help="a bundle folder (the 'bundle' a training run writes)")
+    parser.add_argument("--index", action="store_true",
+                        help="write the shipped bundles' index instead")
     parser.add_argument("--metrics", default=None, help="the run's metrics.jsonl to copy in")
     parser.add_argument("--command", default=None, help="the command that trained it")
     args = parser.parse_args(argv)
-    from sphere_jax import model_card
+    from sphere_jax import model_card, paths
+    if args.index == bool(args.bundle):
+        parser.error("give a bundle folder or --index")
     with cli.refusals():
-        print(model_card.write(args.bundle, args.metrics, args.command))
+        if args.index:
+            print(model_card.weights_index(paths.weights_root(), paths.SHIPPED))
+        else:
+            print(model_card.write(args.bundle, args.metrics, args.command))
 
 
 if __name__ == "__main__":
