@@ -14,6 +14,8 @@ from sphere_jax.data import pipeline
 from sphere_jax.data.generators import synthetic
 from tests.data.generators.test_synthetic import SMALL
 
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

@@ -5,6 +5,8 @@ import time
 
 import pytest
 
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
+
 NOTEBOOKS = sorted(glob.glob(os.path.join(os.path.dirname(__file__), "..", "notebooks",
                                           "*.ipynb")))
 BUDGET_S = 300                      # per notebook on the 2-core machine

@@ -8,11 +8,14 @@ import venv
 import zipfile
 
 import numpy as np
+import pytest
 
 from sphere_jax import paths
 from sphere_jax.data import demo
 from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
+
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

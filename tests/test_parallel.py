@@ -13,6 +13,8 @@ import pytest
 from sphere_jax import parallel
 from tests.test_training import tiny
 
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

@@ -12,6 +12,8 @@ from sphere_jax.data.generators import synthetic
 from tests import reference
 from tests.data.generators.test_synthetic import SMALL
 
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
+
 CONFIGS = {"compass": compass, "lead": lead, "lead_pn": lead_pn, "sound": sound,
            "classify": classify}
 

@@ -4,9 +4,12 @@ import os
 import shutil
 
 import numpy as np
+import pytest
 
 from configs import ablation
 from sphere_jax.eval import ablation as task
+
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
 
 
 def test_variants_are_the_seeds_configurations():

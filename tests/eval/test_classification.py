@@ -8,6 +8,8 @@ from configs import eval_classification
 from sphere_jax import checks, paths
 from sphere_jax.eval import classification
 
+pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
+
 
 def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
     c = eval_classification.get_config("tiny")
