@@ -6,8 +6,9 @@ A bundle is a folder::
     bundle/variables/           params + batch_stats (an orbax StandardCheckpoint)
     bundle/training_data.json   what the bundle was trained on: folders, scans, patches
 
-The JSON files are written under a temporary name and renamed into place, the variables
-first: a folder whose ``config.json`` is missing is not a bundle. :func:`sphere_jax.api.load_bundle`
+A bundle is written whole into a temporary folder beside it and swapped in
+(:func:`sphere_jax.files.replacing`): a full disk or a kill mid-write leaves the previous
+bundle as it was. A folder whose ``config.json`` is missing is not a bundle. :func:`sphere_jax.api.load_bundle`
 turns a folder into a model; this module only reads and writes the files.
 """
 from __future__ import annotations
@@ -26,6 +27,7 @@ import ml_collections
 import numpy as np
 import orbax.checkpoint as ocp
 
+from sphere_jax import files
 from sphere_jax.checks import BundleError
 
 CONFIG = "config.json"
@@ -34,11 +36,8 @@ TRAINING_DATA = "training_data.json"
 
 
 def write_json(path, text):
-    """Write ``text`` to ``path`` atomically (a temporary name, then a rename)."""
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+    """Write ``text`` to ``path`` atomically (:func:`sphere_jax.files.atomic_write`)."""
+    files.atomic_write(path, text)
 
 
 def save(path, config, variables, training_data=None):
@@ -46,22 +45,34 @@ def save(path, config, variables, training_data=None):
     ``variables``: ``{'params', 'batch_stats'}``; ``training_data``: a JSON-able statement of
     the training data (see :meth:`sphere_jax.data.pipeline.PatchSource.statement`)."""
     path = os.path.abspath(str(path))
-    # In a multi-host run every process calls this (orbax's save is collective); the files
-    # themselves are written by process 0.
+    # In a multi-host run every process calls this (orbax's save is collective) with the same
+    # folder; the files themselves are written by process 0.
     primary = jax.process_index() == 0
-    target = os.path.join(path, VARIABLES)
+    tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.writing")
     if primary:
-        os.makedirs(path, exist_ok=True)
-        if os.path.exists(target):
-            shutil.rmtree(target)
-    with ocp.StandardCheckpointer() as ckpt:
-        # Host copies: a bundle does not depend on the devices it was trained on.
-        ckpt.save(target, jax.tree_util.tree_map(np.asarray, variables))
-    if primary:
-        write_json(os.path.join(path, CONFIG), config.to_json(indent=1))
-        if training_data is not None:
-            write_json(os.path.join(path, TRAINING_DATA), json.dumps(training_data, indent=1))
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        shutil.rmtree(tmp, ignore_errors=True)           # a run killed mid-write
+        os.makedirs(tmp)
+    try:
+        with ocp.StandardCheckpointer() as ckpt:
+            # Host copies: a bundle does not depend on the devices it was trained on.
+            ckpt.save(os.path.join(tmp, VARIABLES),
+                      jax.tree_util.tree_map(np.asarray, variables))
+        if primary:
+            write_json(os.path.join(tmp, CONFIG), config.to_json(indent=1))
+            if training_data is not None:
+                write_json(os.path.join(tmp, TRAINING_DATA),
+                           json.dumps(training_data, indent=1))
+            if os.path.isdir(path):     # its card's evaluations were of the old weights
+                files.swap_folders(tmp, path)
+            else:
+                os.replace(tmp, path)
+    except BaseException:
+        if primary:
+            shutil.rmtree(tmp, ignore_errors=True)
+        raise
     return path
+
 
 
 def is_bundle(path) -> bool:

@@ -17,7 +17,7 @@ import datetime
 import json
 import os
 
-from sphere_jax import bundle
+from sphere_jax import bundle, files
 
 CARD = "MODEL_CARD.md"
 CURVE = "validation_curve.png"
@@ -69,10 +69,9 @@ def plot_curve(lines, path, title):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    tmp = path + ".tmp.png"
-    fig.savefig(tmp)
+    with files.replacing(path, ".png") as tmp:
+        fig.savefig(tmp)
     plt.close(fig)
-    os.replace(tmp, path)
 
 
 def add_evaluation(bundle_dir, name, table_markdown, command, date=None):

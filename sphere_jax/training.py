@@ -24,7 +24,7 @@ import orbax.checkpoint as ocp
 from jax.sharding import PartitionSpec as P
 from tqdm import tqdm
 
-from sphere_jax import api, bundle, checks, model_card, models, parallel
+from sphere_jax import api, bundle, checks, files, model_card, models, parallel, workdirs
 from sphere_jax.data import evaluation_scenes, pipeline
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.prefetch import Prefetch
@@ -297,10 +297,7 @@ def _truncate_metrics(path, last_step):
         return
     with open(path) as f:
         keep = [ln for ln in f if ln.strip() and json.loads(ln)["step"] <= last_step]
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        f.writelines(keep)
-    os.replace(tmp, path)
+    files.atomic_write(path, "".join(keep))
 
 
 def save_bundle(workdir, config, state, training_data=None):
@@ -326,7 +323,12 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     bundle records the steps done, so the same command with a later budget resumes.
     ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`)."""
     checks.config_values(config)
-    os.makedirs(workdir, exist_ok=True)
+    learning_rate_schedule(config.train)                # a bad schedule fails before any work
+    with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
+        return _train(config, workdir, progress, init_variables, command)
+
+
+def _train(config, workdir, progress, init_variables, command):
     claim_workdir(workdir, config)
     source = build_source(config)
     if models.spec(config.model).labelled:
@@ -335,7 +337,6 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     mesh = parallel.make_mesh(config.train.get("devices", 0) or None)
     parallel.check_batch_size(config.train.batch_size, mesh)
     model = training_model(config)
-    learning_rate_schedule(config.train)                # a bad schedule fails before any work
     tx = optimiser()
     state = init_state(config, model, tx, get_batch(config, source, 0))
     train_step, eval_step = make_steps(config, model, tx, mesh)

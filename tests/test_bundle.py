@@ -1,5 +1,7 @@
 """Bundle folders: what training writes is what the API loads, with the training-data
 statement beside the weights."""
+import os
+
 import jax
 import numpy as np
 import pytest
@@ -46,3 +48,53 @@ def test_portable_labels_of_data_folders(tmp_path, monkeypatch):
     monkeypatch.setenv("SPHERE_JAX_REAL_DATA", str(tmp_path))
     (tmp_path / "3dmatch").mkdir()
     assert paths.portable(tmp_path / "3dmatch" / "x") == "shared/3dmatch/x"
+
+
+def test_a_bundle_write_that_fails_leaves_the_previous_bundle(tmp_path, monkeypatch):
+    """The disk fills while the weights of a new bundle are written: the error reaches the
+    caller, and the folder still holds the previous bundle, whole (no temporary left)."""
+    import errno
+
+    import jax.numpy as jnp
+    import ml_collections
+    import numpy as np
+    import orbax.checkpoint as ocp
+
+    from sphere_jax import bundle
+    config = ml_collections.ConfigDict({"model": "lead", "data": {"root": "a"}})
+    path = tmp_path / "bundle"
+    bundle.save(path, config, {"params": {"w": jnp.ones(3)}, "batch_stats": {}})
+    save = ocp.StandardCheckpointer.save
+
+    def full_disk(self, directory, *args, **kwargs):
+        save(self, directory, *args, **kwargs)          # the files land, then the disk is full
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(ocp.StandardCheckpointer, "save", full_disk)
+    config.data.root = "b"
+    with pytest.raises(OSError, match="No space left"):
+        bundle.save(path, config, {"params": {"w": jnp.zeros(3)}, "batch_stats": {}})
+    monkeypatch.undo()
+    assert bundle.read_config(path).data.root == "a"
+    np.testing.assert_array_equal(bundle.read_variables(path)["params"]["w"], np.ones(3))
+    assert sorted(os.listdir(tmp_path)) == ["bundle"]
+    config.data.root = "c"                              # and a later write replaces it whole
+    bundle.save(path, config, {"params": {"w": jnp.zeros(3)}, "batch_stats": {}})
+    np.testing.assert_array_equal(bundle.read_variables(path)["params"]["w"], np.zeros(3))
+    assert sorted(os.listdir(tmp_path)) == ["bundle"] and bundle.read_config(path).data.root == "c"
+
+
+def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path, monkeypatch):
+    import errno
+
+    from sphere_jax import files
+    target = tmp_path / "table.md"
+    files.atomic_write(target, "old")
+
+    def fail(*_):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", fail)
+    with pytest.raises(OSError):
+        files.atomic_write(target, "new " * 1000)
+    assert target.read_text() == "old" and os.listdir(tmp_path) == ["table.md"]

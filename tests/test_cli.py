@@ -35,3 +35,23 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], out.stderr
     assert not (tmp_path / "w").exists()
+
+
+@pytest.mark.parametrize("main", ["experiments.train", "experiments.evaluate"])
+def test_unusable_or_busy_workdirs_are_one_line_and_status_2(main, tmp_path):
+    from tests.test_workdirs import HOLD
+    config = "--config=lead:tiny" if main.endswith("train") else "--config=eval_registration:tiny"
+    (tmp_path / "file").write_text("x")
+    out = run(main, config, f"--workdir={tmp_path / 'file' / 'w'}")
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "cannot be created: Not a directory" in out.stderr
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(tmp_path / "busy")], cwd=ROOT,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        out = run(main, config, f"--workdir={tmp_path / 'busy'}")
+    finally:
+        holder.kill()
+        holder.wait()
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert f"is in use by process {holder.pid}" in out.stderr

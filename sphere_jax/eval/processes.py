@@ -14,6 +14,8 @@ import pickle
 
 import jax
 
+from sphere_jax import files
+
 
 def share(items) -> list:
     """``[(index, item)]`` of this process's items: every ``process_count``-th one."""
@@ -35,9 +37,7 @@ def gather(indexed_results, workdir, name):
     folder = os.path.join(workdir, "processes")
     os.makedirs(folder, exist_ok=True)
     path = os.path.join(folder, f"{name}_{jax.process_index()}.pkl")
-    with open(path + ".tmp", "wb") as f:
-        pickle.dump(indexed_results, f)
-    os.replace(path + ".tmp", path)
+    files.atomic_write(path, pickle.dumps(indexed_results))
     multihost_utils.sync_global_devices(f"sphere_jax:{name}:written")
     merged = None
     if is_writer():

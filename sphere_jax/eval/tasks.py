@@ -13,7 +13,7 @@ import json
 import os
 import time
 
-from sphere_jax import checks
+from sphere_jax import checks, workdirs
 from sphere_jax.data.readers import io
 
 TASKS = {
@@ -45,7 +45,9 @@ def run(config, workdir, progress=True, command=None):
     module = task_module(config.task)
     checks.config_values(config)
     start = time.perf_counter()
-    rows, md = module.run(config, workdir, progress)
+    import jax
+    with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
+        rows, md = module.run(config, workdir, progress)
     if md:                                        # in a multi-process run: process 0 only
         record = {"command": command, "task": config.task, "config": config.to_dict(),
                   "bundles": bundles_used(config), "date": datetime.date.today().isoformat(),

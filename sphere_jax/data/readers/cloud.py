@@ -7,6 +7,7 @@ import os
 
 import numpy as np
 
+from sphere_jax import files
 from sphere_jax.checks import DataError  # noqa: F401  (the readers' error, re-exported)
 
 
@@ -78,8 +79,4 @@ def triangulate(path, polys, n_vertices):
     return tris
 
 
-def atomic_write(path, data: bytes):
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
+atomic_write = files.atomic_write          # the readers' writers use the one helper

@@ -13,6 +13,7 @@ import os
 
 import numpy as np
 
+from sphere_jax import files
 from sphere_jax.data.readers.io import Cloud, DataError, check_exists, parse_numbers
 
 
@@ -57,10 +58,9 @@ def read_image(path):
 def write_png(path, array):
     """Write an image array (uint8 colour or mask, uint16 depth) as PNG, atomically."""
     import open3d as o3d
-    tmp = path + ".tmp.png"
-    if not o3d.io.write_image(tmp, o3d.geometry.Image(np.ascontiguousarray(array))):
-        raise OSError(f"could not write {path}")
-    os.replace(tmp, path)
+    with files.replacing(path, ".png") as tmp:
+        if not o3d.io.write_image(tmp, o3d.geometry.Image(np.ascontiguousarray(array))):
+            raise OSError(f"could not write {path}")
 
 
 def depth_to_cloud(depth, intrinsics, color=None, pose=None, depth_scale=1000.0,
