@@ -5,7 +5,9 @@ SOURCE and TARGET are point files (PLY, PCD, OFF, XYZ/TXT, NPY) in any unit. Pri
 the time of each stage; ``--out DIR`` also writes ``transform.txt``, ``source_registered.ply``
 and ``before_after.png``. ``--voxel`` and ``--radius`` default to ``auto``: chosen from the
 clouds so that a support holds as many points as at training time (:mod:`sphere_jax.align`),
-and printed.
+and printed. A registration that does not succeed (too few points, no mutual matches, no
+RANSAC consensus, ICP fitness below ``--min-fitness``) prints ``FAILED: <reason>`` and exits
+with status 3.
 
     python -m experiments.register a.ply b.ply --method=fpfh --voxel=0.05 --out=runs/ab
 """
@@ -13,11 +15,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 import numpy as np
 
 from experiments import cli
 from sphere_jax import align
+
+
+FAILED = 3          # exit status of a registration that did not succeed (2: bad usage)
 
 
 def _scale(text):
@@ -42,13 +48,23 @@ def main(argv=None):
     parser.add_argument("--no-icp", action="store_true")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")
+    parser.add_argument("--min-inliers", type=int, default=align.MIN_INLIERS,
+                        help="fewer RANSAC inliers is a failed registration")
+    parser.add_argument("--min-fitness", type=float, default=align.MIN_FITNESS,
+                        help="a lower ICP fitness is a failed registration")
     args = parser.parse_args(argv)
+    from sphere_jax import workdirs
     from sphere_jax.data.readers import io
     with cli.refusals():
+        if args.out:                               # before the work, not after it
+            workdirs.prepare(args.out, "--out")
         source, target = io.read_points(args.source).points, io.read_points(args.target).points
         result = align.register(source, target, args.method, args.voxel, args.radius,
-                                args.keypoints, args.seed, args.bundle, not args.no_icp)
+                                args.keypoints, args.seed, args.bundle, not args.no_icp,
+                                args.min_inliers, args.min_fitness)
     print(result.summary())
+    if not result.ok:                              # scripts over many pairs can tell
+        sys.exit(FAILED)
     if args.out:
         write_outputs(args.out, source, target, result)
         print(f"written to {args.out}")

@@ -31,9 +31,19 @@ HANDCRAFTED = ("fpfh", "shot", "spin", "usc")
 VOTED = ("lead_vote", "shot_vote")         # described again in a frame voted by a first pass
 
 
+# Below these a registration is reported as failed, not as a result.
+MIN_POINTS = 10          # voxelised points per cloud
+MIN_MATCHES = 3          # mutual matches: RANSAC's minimal sample
+MIN_INLIERS = 10         # RANSAC's consensus
+MIN_FITNESS = 0.05       # ICP: share of source points with a target point within reach
+
+
 @dataclasses.dataclass
 class Registration:
-    """``transform`` maps the source onto the target: ``p_target = T · p_source``."""
+    """``transform`` maps the source onto the target: ``p_target = T · p_source``. A
+    registration that did not succeed says so: ``ok`` is False and ``reason`` says why (too few
+    points, no mutual matches, no RANSAC consensus, ICP fitness below the threshold); its
+    ``transform`` is then the best guess, not a result."""
     transform: np.ndarray
     inliers: int            # matches within the RANSAC distance under the RANSAC transform
     matches: int            # mutual nearest neighbours in descriptor space
@@ -43,11 +53,17 @@ class Registration:
     radius: float
     method: str
     seconds: dict           # per stage
+    reason: str = ""        # why it failed; '' when it succeeded
+
+    @property
+    def ok(self) -> bool:
+        return not self.reason
 
     def summary(self) -> str:
         t = "\n".join("  " + " ".join(f"{v: .6f}" for v in row) for row in self.transform)
         times = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items())
-        return (f"p_target = T · p_source with T =\n{t}\n{self.method}: {self.matches} mutual "
+        status = "registered" if self.ok else f"FAILED: {self.reason}"
+        return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: {self.matches} mutual "
                 f"matches, {self.inliers} RANSAC inliers; ICP fitness {self.fitness:.3f}, RMSE "
                 f"{self.rmse:.4g}\nvoxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}")
 
@@ -84,7 +100,8 @@ def _fragment(name, points, voxel, n_keypoints, seed):
 
 
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
-             n_keypoints=5000, seed=0, bundle=None, icp=True) -> Registration:
+             n_keypoints=5000, seed=0, bundle=None, icp=True, min_inliers=MIN_INLIERS,
+             min_fitness=MIN_FITNESS) -> Registration:
     """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d point clouds or file
     paths, any unit).
 
@@ -99,6 +116,9 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       n_keypoints: random keypoints per cloud on the voxel grid.
       bundle: a bundle (folder or kind) replacing the shipped one of its kind.
       icp: refine the RANSAC transform by point-to-plane ICP.
+      min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
+        failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
+        voxelised points in a cloud or ``MIN_MATCHES`` mutual matches.
     """
     from sphere_jax.eval import methods, registration, voting
     checks.choice(method, "method", LEARNED + HANDCRAFTED + VOTED)
@@ -115,9 +135,23 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         seconds[stage] = time.perf_counter() - t0
         t0 = time.perf_counter()
 
+    min_inliers = checks.non_negative(min_inliers, "min_inliers", integer=True)
+    min_fitness = checks.non_negative(min_fitness, "min_fitness")
+    fail = functools.partial(Registration, np.eye(4), 0, 0, np.nan, np.nan, voxel, radius,
+                             method, seconds)
+    few = [(name, len(p)) for name, p in (("source", source), ("target", target))
+           if len(p) < MIN_POINTS]
+    if few:
+        return fail(reason="too few points: " + ", ".join(f"{n} has {k}" for n, k in few)
+                    + f" (at least {MIN_POINTS})")
     src = _fragment("source", source, voxel, n_keypoints, seed)
     dst = _fragment("target", target, voxel, n_keypoints, seed + 1)
     lap("voxels, normals, keypoints")
+    few = [(name, len(f.points)) for name, f in (("source", src), ("target", dst))
+           if len(f.points) < MIN_POINTS]
+    if few:
+        return fail(reason="too few points on the voxel grid: " + ", ".join(
+            f"{n} has {k} at voxel {voxel:.4g}" for n, k in few) + f" (at least {MIN_POINTS})")
     distance = 2.5 * voxel                  # RANSAC's and ICP's reach
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     if bundle is not None:
@@ -137,15 +171,26 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     lap("descriptors")
     ia, ib = registration.mutual_matches(d_src, d_dst)
     lap("matching")
+    if len(ia) < MIN_MATCHES:
+        return fail(matches=len(ia), reason=f"{len(ia)} mutual matches (RANSAC needs "
+                                            f"{MIN_MATCHES})")
     t, inliers = registration.ransac_consensus(dst.points[dst.keypoints[ib]],
                                                src.points[src.keypoints[ia]], distance,
                                                seed=seed)
     lap("RANSAC")
-    fitness, rmse = np.nan, np.nan
+    if inliers < min_inliers:
+        return Registration(t, inliers, len(ia), np.nan, np.nan, voxel, radius, method, seconds,
+                            f"RANSAC found no consensus: {inliers} inliers of {len(ia)} "
+                            f"matches (min_inliers={min_inliers})")
+    fitness, rmse, reason = np.nan, np.nan, ""
     if icp:
         t, fitness, rmse = point_to_plane_icp(src, dst, t, distance)
         lap("ICP")
-    return Registration(t, inliers, len(ia), fitness, rmse, voxel, radius, method, seconds)
+        if fitness < min_fitness:
+            reason = (f"ICP fitness {fitness:.3f} is below min_fitness={min_fitness}: the "
+                      f"clouds do not overlap under the found transform")
+    return Registration(t, inliers, len(ia), fitness, rmse, voxel, radius, method, seconds,
+                        reason)
 
 
 def point_to_plane_icp(src, dst, t_init, distance):

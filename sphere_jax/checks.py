@@ -135,14 +135,23 @@ def keypoints(kp, n_points, name="keypoints"):
 def positive(value, name, integer=False, default=None):
     """A positive finite number (``integer``: a positive int). ``None`` gives ``default``;
     anything given is checked, never replaced."""
+    return _bounded(value, name, integer, default, "positive", lambda v: v > 0)
+
+
+def non_negative(value, name, integer=False, default=None):
+    """:func:`positive`, zero allowed."""
+    return _bounded(value, name, integer, default, "non-negative", lambda v: v >= 0)
+
+
+def _bounded(value, name, integer, default, word, ok):
     if value is None:
         return default
     ok_type = numbers.Integral if integer else numbers.Real
     if isinstance(value, bool) or not isinstance(value, ok_type):
-        raise InputError(name, "a positive " + ("integer" if integer else "number"),
+        raise InputError(name, f"a {word} " + ("integer" if integer else "number"),
                          shown(value))
-    if not np.isfinite(value) or value <= 0:
-        raise InputError(name, "a positive " + ("integer" if integer else "finite number"),
+    if not np.isfinite(value) or not ok(value):
+        raise InputError(name, f"a {word} " + ("integer" if integer else "finite number"),
                          repr(value))
     return int(value) if integer else float(value)
 

@@ -26,16 +26,17 @@ class WorkdirBusy(checks.ConfigError):
     """Another run holds the workdir."""
 
 
-def prepare(workdir) -> str:
-    """Create ``workdir`` if needed; ConfigError when it cannot be created or written."""
+def prepare(workdir, flag="--workdir") -> str:
+    """Create ``workdir`` if needed; ConfigError (naming ``flag``) when it cannot be created
+    or written."""
     workdir = str(workdir)
     try:
         os.makedirs(workdir, exist_ok=True)
     except OSError as e:
-        raise checks.ConfigError(f"--workdir {workdir} cannot be created: "
+        raise checks.ConfigError(f"{flag} {workdir} cannot be created: "
                                  f"{e.strerror or e} ({e.filename or workdir})") from None
     if not os.access(workdir, os.W_OK | os.X_OK):
-        raise checks.ConfigError(f"--workdir {workdir} cannot be written (permission denied)")
+        raise checks.ConfigError(f"{flag} {workdir} cannot be written (permission denied)")
     return workdir
 
 

@@ -73,3 +73,26 @@ def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
     moved = io.read_ply(out / "source_registered.ply").points
     np.testing.assert_allclose(moved, src @ t[:3, :3].T + t[:3, 3], atol=1e-4)
     assert os.path.getsize(out / "before_after.png") > 10_000
+
+
+def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
+    """Three points, and two clouds that share nothing: each a failed result with its reason
+    (not an identity matrix reported as the transform); the command line prints FAILED and
+    exits 3; an --out that cannot be a folder is refused before any work."""
+    tiny = sphere_jax.register(np.eye(3), np.eye(3) + 1.0, method="fpfh")
+    assert not tiny.ok and tiny.reason.startswith("too few points: source has 3")
+    (src, dst), _ = pair
+    far = np.random.default_rng(0).normal(size=(5000, 3)) * 0.5      # noise, no shared surface
+    lost = sphere_jax.register(src, far, method="fpfh", voxel=0.02, radius=0.3, n_keypoints=500)
+    assert not lost.ok and ("consensus" in lost.reason or "fitness" in lost.reason), lost.reason
+    assert lost.summary().startswith("FAILED: ")
+    np.save(tmp_path / "a.npy", np.eye(3))
+    with pytest.raises(SystemExit) as out:
+        register_cli.main([str(tmp_path / "a.npy"), str(tmp_path / "a.npy"), "--method=fpfh"])
+    assert out.value.code == register_cli.FAILED
+    assert capsys.readouterr().out.startswith("FAILED: too few points")
+    (tmp_path / "taken").write_text("x")
+    with pytest.raises(SystemExit) as out:
+        register_cli.main([str(tmp_path / "a.npy"), str(tmp_path / "a.npy"),
+                           f"--out={tmp_path / 'taken'}"])
+    assert out.value.code == 2 and "--out" in capsys.readouterr().err

@@ -188,10 +188,16 @@ def load_fragment_scene(fragment_dir, gt_dir=None) -> FragmentScene:
         if gt_dir is None:
             raise DataError(fragment_dir, "no gt.log here or in '<scene>-evaluation'; give "
                                           "gt_dir (evaluations: --config.data.gt=DIR)")
-    transforms, n = read_gt_log(os.path.join(gt_dir, "gt.log"))
+    log = os.path.join(gt_dir, "gt.log")
+    transforms, n = read_gt_log(log)
+    if not transforms:
+        raise DataError(log, "no pairs: the ground truth is empty")
     present = set(ks)
     skipped = tuple(sorted(p for p in transforms if p[0] not in present or p[1] not in present))
     transforms = {p: t for p, t in transforms.items() if p not in skipped}
+    if not transforms:
+        raise DataError(log, f"none of its {len(skipped)} pairs has both clouds in "
+                             f"{fragment_dir} (fragments there: {ks}); is it this scene's?")
     optional = lambda name, fn: fn(os.path.join(gt_dir, name)) if os.path.isfile(
         os.path.join(gt_dir, name)) else {}
     overlaps = optional("gt_overlap.log", read_gt_overlap)

@@ -70,3 +70,15 @@ def test_conf_with_a_zero_quaternion_is_refused(tmp_path):
     (tmp_path / "z.conf").write_text("camera 0 0 0 0 0 0 1\nbmesh a.ply 0 0 0 0 0 0 0\n")
     with pytest.raises(io.DataError, match="line 2: the quaternion of a.ply is zero"):
         stanford.read_stanford_conf(tmp_path / "z.conf")
+
+
+def test_empty_or_foreign_ground_truth_is_refused(tmp_path):
+    from sphere_jax.data.readers import ply
+    ply.write_ply(tmp_path / "cloud_bin_0.ply", np.zeros((4, 3), np.float32))
+    ply.write_ply(tmp_path / "cloud_bin_1.ply", np.zeros((4, 3), np.float32))
+    (tmp_path / "gt.log").write_text("")
+    with pytest.raises(io.DataError, match="no pairs: the ground truth is empty"):
+        threedmatch.load_fragment_scene(tmp_path)
+    threedmatch.write_gt_log(tmp_path / "gt.log", {(5, 7): np.eye(4)}, 8)
+    with pytest.raises(io.DataError, match=r"none of its 1 pairs has both clouds .*\[0, 1\]"):
+        threedmatch.load_fragment_scene(tmp_path)
