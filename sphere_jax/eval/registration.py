@@ -25,7 +25,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax.data import o3d_convert
 from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import processes, report, voting
+from sphere_jax.eval import processes, report, resume, voting
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.spherical import so3
 
@@ -160,7 +160,8 @@ class SceneResult:
 
 def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                    prepare_kwargs=None, tau1=TAU1, tau2=TAU2, ransac_distance=0.05,
-                   ransac_iterations=50_000, seed=0, progress=True) -> list[SceneResult]:
+                   ransac_iterations=50_000, seed=0, progress=True,
+                   finished=None) -> list[SceneResult]:
     """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``, a
     :class:`~sphere_jax.eval.methods.GroundTruthFrames` or a
     :class:`~sphere_jax.eval.voting.VotedFrames`) on every pair of ``pair_set``, on the same
@@ -168,13 +169,22 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
     rotation's error), ``vote_support`` and ``vote_proposals`` (the first-pass matches that
     agreed with it, and all of them), ``vote_mode`` and ``box_turn_deg`` (which of the vote's
     modes the consensus kept, 0 the strongest, and the box turn applied to it) and
-    ``second_pass`` (False where RANSAC's consensus kept the first pass)."""
+    ``second_pass`` (False where RANSAC's consensus kept the first pass). ``finished``
+    (:class:`~sphere_jax.eval.resume.Finished`): results kept by an earlier, interrupted run
+    are taken from it, and each new one is kept there as it ends."""
+    kept = {name: finished.get(name, pair_set.name) if finished else None
+            for name in describers}
+    if all(r is not None for r in kept.values()):
+        return list(kept.values())
     frags = scene_lib.prepare_all(pair_set, seed, progress, **(prepare_kwargs or {}))
     agree = functools.partial(consensus, max_distance=ransac_distance,
                               iterations=ransac_iterations, seed=seed)
     screen = functools.partial(agree, iterations=min(ransac_iterations, SCREEN_ITERATIONS))
     results = []
     for name, describe in describers.items():
+        if kept[name] is not None:
+            results.append(kept[name])
+            continue
         start = time.perf_counter()
         inputs, n_described, votes = _pair_descriptors(name, describe, frags, pair_set,
                                                        progress, agree, screen)
@@ -184,6 +194,8 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                      **_vote_row(votes.get((i, j)), t))
                 for (i, j), t in pair_set.transforms.items()]
         results.append(SceneResult(name, pair_set.name, rows, summarise(rows, tau1, tau2), ms))
+        if finished is not None:
+            finished.put(results[-1])
     return results
 
 
@@ -281,9 +293,10 @@ def run(config, workdir, progress=True):
     names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS + method_lib.VOTED +
                                       method_lib.GROUND_TRUTH, bundles)
     describers = {m: _describer(m, config, bundles) for m in names}
+    finished = resume.Finished(workdir, config, bundles)
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,
                                config.tau2, config.ransac_distance, config.ransac_iterations,
-                               config.seed, progress))
+                               config.seed, progress, finished))
             for k, s in processes.share(scene_lib.pair_sets(config))]
     results = processes.gather(mine, workdir, "registration")
     if results is None:                       # another process writes the tables

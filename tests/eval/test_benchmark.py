@@ -105,3 +105,42 @@ def test_partial_scene_and_ground_truth_elsewhere(tmp_path):
     np.testing.assert_allclose(sets[0].transforms[(8, 15)], t)
     with pytest.raises(FileNotFoundError, match="data.gt"):
         scenes.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "nowhere")
+
+
+def test_a_killed_evaluation_redoes_only_what_it_had_not_finished(tmp_path, monkeypatch):
+    """The run dies in its second method: the rerun describes with that method only and writes
+    the same results.csv (timings aside) as an uninterrupted run; another config starts
+    afresh."""
+    c = eval_registration.get_config("tiny")
+    c.methods = "fpfh,shot"
+    c.data.scenes = "synth-room-0"                          # one scene: methods in order
+    tasks.run(c, str(tmp_path / "whole"), progress=False)
+    calls = []
+    real = methods.descriptor
+
+    def counting(name, *args, **kwargs):
+        describe = real(name, *args, **kwargs)
+
+        def run(fragment):
+            calls.append(name)
+            if name == "shot" and die:
+                raise KeyboardInterrupt                      # the kill
+            return describe(fragment)
+        return run
+
+    monkeypatch.setattr(methods, "descriptor", counting)
+    die = True
+    with pytest.raises(KeyboardInterrupt):
+        tasks.run(c, str(tmp_path / "cut"), progress=False)
+    assert calls == ["fpfh"] * calls.count("fpfh") + ["shot"] and calls.count("fpfh") > 0
+    calls.clear()
+    die = False
+    tasks.run(c, str(tmp_path / "cut"), progress=False)
+    assert set(calls) == {"shot"}                            # fpfh was kept
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "ms_per_keypoint"} for r in rows]
+    assert strip(_read_csv(tmp_path / "cut" / "results.csv")) == \
+        strip(_read_csv(tmp_path / "whole" / "results.csv"))
+    calls.clear()
+    c.data.n_keypoints = 200                                 # another config: all again
+    tasks.run(c, str(tmp_path / "cut"), progress=False)
+    assert set(calls) == {"fpfh", "shot"}
