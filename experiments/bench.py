@@ -6,7 +6,9 @@ spherical signals on a 3DMatch fragment), ``models`` (forward and description
 per config; ``--sizes=cpu,paper``, ``--only=lead``), ``registration`` (one 3DMatch pair end to
 end), ``train`` (training steps fused vs layer by layer on 1 and 2 devices, patches/s, peak RSS,
 data wait; ``--sizes``, ``--only``, ``--repeats`` steps), ``peers`` (our S2/SO(3) transforms
-against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[bench]'``).
+against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[bench]'``),
+``describe`` (per method: ms, GFLOP and share of the matmul peak per keypoint, peak RSS and
+``sphere_jax.register`` end to end on a real pair; ``--keypoints``, ``--only``).
 ``--json`` prints one JSON list of the records instead of the table.
 """
 from __future__ import annotations

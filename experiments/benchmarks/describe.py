@@ -1,0 +1,135 @@
+"""Describe suite: what registering two scans costs a user, per method.
+
+For each method (the evaluation's names: FPFH, SHOT, USC beside the shipped learned ones), in a
+fresh process on a real 3DMatch fragment (redkitchen 0; a synthetic room's fragment without the
+real scans) at ``--keypoints`` keypoints:
+
+* ``ms_per_keypoint``: the warm description time (compiled beforehand on other keypoints);
+* ``gflop_per_keypoint``: XLA's cost analysis of the jitted networks it runs, per patch (the
+  hand-crafted methods run no XLA: null), ``gflop_per_s`` what that achieves and
+  ``peak_fraction`` its share of this run's float32 matmul rate (both cores);
+* ``peak_rss_gb``: the process's peak resident memory;
+* ``register_s``: :func:`sphere_jax.register` end to end on one real pair (redkitchen 5 → 0),
+  cold (compilation included, as a user's first call), and its stages in
+  ``register_stages``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+import warnings
+
+import numpy as np
+
+METHODS = ("fpfh", "shot", "usc", "lead", "lead_compass", "lead_pn", "sound")
+# The jitted networks each learned method runs on a patch: (bundle kind, function).
+NETWORKS = {"lead": (("lead", "describe"),), "lead_compass": (("compass", "orient"),
+                                                               ("lead", "describe")),
+            "lead_pn": (("lead_pn", "describe"),), "sound": (("sound", "describe"),)}
+
+
+def run(keypoints=5000, only=None, **_):
+    """One record per method, each measured in its own process."""
+    from experiments.benchmarks.layers import matmul_gflops
+    peak = matmul_gflops()
+    records = []
+    for method in METHODS:
+        if only and only not in method:
+            continue
+        out = subprocess.run([sys.executable, "-m", "experiments.benchmarks.describe", method,
+                              str(keypoints)], capture_output=True, text=True,
+                             cwd=os.path.dirname(os.path.dirname(os.path.dirname(
+                                 os.path.abspath(__file__)))))
+        if out.returncode != 0:
+            raise RuntimeError(f"describe benchmark of {method} failed:\n{out.stderr[-2000:]}")
+        rec = json.loads(out.stdout.strip().splitlines()[-1])
+        gflops = rec.pop("gflop")
+        rec["gflop_per_keypoint"] = None if gflops is None else round(gflops, 4)
+        rate = None if gflops is None else gflops / (rec["ms_per_keypoint"] * 1e-3)
+        rec["gflop_per_s"] = None if rate is None else round(rate, 1)
+        rec["peak_fraction"] = None if rate is None else round(rate / peak, 3)
+        rec["matmul_gflop_per_s"] = round(peak, 1)
+        records.append(rec)
+        print(json.dumps(rec), file=sys.stderr, flush=True)      # partial results survive
+    return records
+
+
+def _fragments(keypoints):
+    """``(fragment to describe, (source, target) files of the pair to register)``."""
+    import glob
+    from sphere_jax import paths
+    from sphere_jax.data import pipeline
+    from sphere_jax.data.readers import threedmatch
+    from sphere_jax.eval import scenes
+    kitchen = paths.real_data("3dmatch", "7-scenes-redkitchen")
+    if kitchen and os.path.isdir(kitchen):
+        scene, (i, j) = threedmatch.load_fragment_scene(kitchen), (0, 5)
+    else:
+        first = sorted(glob.glob(os.path.join(pipeline.default_scan_root(), "*",
+                                              "cloud_bin_0.ply")))[0]
+        scene = threedmatch.load_fragment_scene(os.path.dirname(first))
+        i, j = scene.pairs[0]
+    with warnings.catch_warnings():          # the pairs of fragments not here: not used
+        warnings.simplefilter("ignore")
+        frag = scenes.prepare(scenes.fragment_scene(scene), i, n_keypoints=keypoints)
+    return frag, (scene.fragment_path(j), scene.fragment_path(i))
+
+
+def _flops(method, chunk_patches):
+    """XLA's flop count per patch of the networks ``method`` runs (None: no network)."""
+    from sphere_jax import api, paths
+    if method not in NETWORKS:
+        return None
+    total = 0.0
+    for kind, what in NETWORKS[method]:
+        b = api.cached_bundle(paths.shipped_bundle(kind, required=True))
+        x = chunk_patches[:, :b.config.data.n_points]
+        if what == "orient":
+            compiled = b._orient_fn.lower(x).compile()
+        elif method == "lead_compass":              # LEAD in given frames
+            frames = np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3))
+            compiled = b._describe_fn.lower(x, frames).compile()
+        else:
+            compiled = b._describe_fn.lower(x).compile()
+        cost = compiled.cost_analysis()
+        cost = cost[0] if isinstance(cost, (list, tuple)) else cost
+        total += float(cost.get("flops", 0.0)) / len(x)
+    return total / 1e9
+
+
+def measure(method, keypoints):
+    """The record of one method (run in a fresh process by :func:`run`)."""
+    from sphere_jax import align, paths
+    from sphere_jax.data.readers import io
+    from sphere_jax.eval import methods
+    frag, files = _fragments(keypoints)
+    t0 = time.perf_counter()
+    src, dst = (io.read_points(f).points for f in files)
+    load_s = time.perf_counter() - t0
+    result = align.register(src, dst, method=method, n_keypoints=keypoints)
+    register_s = time.perf_counter() - t0
+    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
+    describe = methods.descriptor(method, 0.30, bundles)
+    warm = dataclasses.replace(frag, keypoints=frag.keypoints[:256])
+    describe(warm)                                          # compiled (again) on other keypoints
+    t0 = time.perf_counter()
+    describe(frag)
+    ms = 1e3 * (time.perf_counter() - t0) / len(frag.keypoints)
+    rng = np.random.default_rng(0)
+    patches = (rng.normal(size=(256, 1225, 3)) * 0.4).astype(np.float32)
+    gflop = _flops(method, patches)
+    rss_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2
+    return {"method": method, "keypoints": len(frag.keypoints), "ms_per_keypoint": round(ms, 3),
+            "gflop": gflop, "peak_rss_gb": round(rss_gb, 2), "register_s": round(register_s, 1),
+            "register_ok": result.ok,
+            "register_stages": {"load": round(load_s, 2),
+                                **{k: round(v, 2) for k, v in result.seconds.items()}}}
+
+
+if __name__ == "__main__":
+    print(json.dumps(measure(sys.argv[1], int(sys.argv[2]))))
