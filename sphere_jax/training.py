@@ -352,7 +352,9 @@ def _train(config, workdir, progress, init_variables, command):
     if init_variables is not None:                # Adam's moments start afresh
         state.update(params=init_variables["params"],
                      batch_stats=init_variables.get("batch_stats", {}),
-                     opt_state=tx.init(init_variables["params"]))
+                     opt_state=tx.init(init_variables["params"]),
+                     # a continued run's schedule and dropout go on at the bundle's step
+                     step=jnp.asarray(start, jnp.int32))
     state = parallel.replicate(state, mesh)
     if mngr.latest_step() is not None:
         start, state, mngr = restore_newest(mngr, workdir, config, state, mesh)
@@ -420,7 +422,11 @@ def continued_bundle(config):
                                  "run either continues a bundle or fine-tunes one")
     trained = bundle.read_config(path)
     _check_same(config, trained, ("model", "model_kwargs", "data", "seed"), "init_bundle")
-    _check_same(config, trained, SCHEDULE, "init_bundle", section="train")
+    # A decaying schedule is a function of the planned steps too; a constant one may be
+    # extended (more steps at the same rate).
+    fields = SCHEDULE if config.train.get("schedule", "constant") != "constant" else \
+        ("batch_size", "learning_rate", "schedule")
+    _check_same(config, trained, fields, "init_bundle", section="train")
     done = steps_done(trained)
     if done >= config.train.steps:
         raise checks.ConfigError(f"train.init_bundle={path!r} has {done} steps done; "

@@ -286,3 +286,28 @@ def test_workdir_of_another_model_is_refused(small_root, tmp_path):
                                                           "this config's compass"):
         training.train_and_evaluate(tiny("compass", small_root, steps=2), workdir,
                                     progress=False)
+
+
+def test_a_continued_run_keeps_the_schedule_of_the_uninterrupted_one(small_root, tmp_path):
+    """Warm-up and cosine decay are a function of the global step: a run stopped by its budget
+    and continued on 'another machine' from its bundle logs, step for step, the learning rates
+    of the uninterrupted run; a bundle trained on another schedule is refused."""
+    from sphere_jax import bundle
+    sched = dict(schedule="warmup_cosine", warmup_steps=2, final_lr_fraction=0.1, log_every=1,
+                 eval_every=8, checkpoint_every=8)
+    whole = tiny("lead", small_root, steps=6, **sched)
+    training.train_and_evaluate(whole, str(tmp_path / "whole"), progress=False)
+    rates = lambda w: {json.loads(ln)["step"]: json.loads(ln)["learning_rate"] for ln in
+                       (tmp_path / w / "metrics.jsonl").read_text().splitlines()}
+    first = tiny("lead", small_root, steps=6, time_budget_s=1e-9, **sched)
+    training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
+    assert training.steps_done(bundle.read_config(str(tmp_path / "a" / "bundle"))) == 1
+    more = tiny("lead", small_root, steps=6, init_bundle=str(tmp_path / "a" / "bundle"), **sched)
+    training.train_and_evaluate(more, str(tmp_path / "b"), progress=False)
+    expected = rates("whole")
+    assert expected[1] == 0.0 and max(expected.values()) == pytest.approx(1e-3)
+    assert rates("b") == {s: expected[s] for s in range(2, 7)}
+    other = tiny("lead", small_root, steps=6, init_bundle=str(tmp_path / "a" / "bundle"),
+                 **{**sched, "warmup_steps": 3})
+    with pytest.raises(checks.ConfigError, match=r"another train.warmup_steps \(2\)"):
+        training.train_and_evaluate(other, str(tmp_path / "c"), progress=False)
