@@ -54,11 +54,11 @@ def validation_curve(lines):
 
 def plot_curve(lines, path, title):
     """The training and validation loss against the step, as a PNG at ``path``."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # A Figure of its own, not pyplot's: training inside a notebook keeps its inline backend.
+    from matplotlib.figure import Figure
     steps, val = validation_curve(lines)
-    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=100)
+    fig = Figure(figsize=(6, 3.5), dpi=100)
+    ax = fig.subplots()
     ax.plot([ln["step"] for ln in lines], [ln["loss"] for ln in lines], lw=0.8, alpha=0.6,
             label="training loss (batch)")
     if steps:
@@ -71,7 +71,6 @@ def plot_curve(lines, path, title):
     fig.tight_layout()
     with files.replacing(path, ".png") as tmp:
         fig.savefig(tmp)
-    plt.close(fig)
 
 
 def add_evaluation(bundle_dir, name, table_markdown, command, date=None):

@@ -513,7 +513,8 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     config.train.init_bundle = config.train.finetune_bundle = ""
     config.train.steps = int(steps)
     config.train.schedule = "constant"     # a short fine-tune at the bundle's peak rate
-    config.train.pop("steps_done", None)
+    if "steps_done" in config.train:          # the adapted bundle records its own
+        del config.train["steps_done"]
     for key in ("checkpoint_every", "eval_every", "log_every"):
         config.train[key] = max(1, min(config.train[key], steps))
     if learning_rate:

@@ -23,7 +23,7 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
     card = (path / model_card.CARD).read_text()
     assert "python -m experiments.train --config=lead:tiny" in card
     assert "steps: 2 of 2 planned × batch 4" in card and "cosine decay to 0.1×" in card
-    assert "synth-room-0` (12 scans)" in card and "evaluation scenes in the training data: none" in card
+    assert "synth-room-s1-0` (12 scans)" in card and "evaluation scenes in the training data: none" in card
     # The validation table has one row per evaluated step, with the logged figures.
     logged = [json.loads(ln) for ln in (tmp_path / "w" / "metrics.jsonl").read_text().splitlines()]
     assert [ln["step"] for ln in logged] == [1, 2]

@@ -20,6 +20,7 @@ import os
 import time
 from typing import Callable
 
+import jax
 import numpy as np
 from tqdm.auto import tqdm
 
@@ -293,7 +294,7 @@ def run(config, workdir, progress=True):
     names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS + method_lib.VOTED +
                                       method_lib.GROUND_TRUTH, bundles)
     describers = {m: _describer(m, config, bundles) for m in names}
-    finished = resume.Finished(workdir, config, bundles)
+    finished = resume.Finished(workdir, config, bundles, primary=jax.process_index() == 0)
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,
                                config.tau2, config.ransac_distance, config.ransac_iterations,
                                config.seed, progress, finished))

@@ -21,21 +21,23 @@ FOLDER = "finished"
 
 
 class Finished:
-    """The finished results of one evaluation in ``workdir/finished/``."""
+    """The finished results of one evaluation in ``workdir/finished/<key>/``; ``primary``:
+    whether this process tidies the other keys' results away (process 0)."""
 
-    def __init__(self, workdir, config, bundles: dict):
+    def __init__(self, workdir, config, bundles: dict, primary=True):
         settings = {k: v for k, v in config.to_dict().items() if k != "methods"}
         stamps = {k: [str(p), bundle_files.stamp(p)] for k, p in sorted(bundles.items()) if p}
         text = json.dumps([settings, stamps], sort_keys=True, default=str)
         self.key = hashlib.sha256(text.encode()).hexdigest()[:16]
-        self.folder = os.path.join(str(workdir), FOLDER)
-        marker = os.path.join(self.folder, "KEY")
-        if os.path.isdir(self.folder) and (not os.path.isfile(marker)
-                                           or open(marker).read().strip() != self.key):
-            shutil.rmtree(self.folder)              # another config or other bundles
+        # One folder per key: processes of a multi-process run share it without a race, and
+        # the results of another config or other bundles are dropped (by process 0 alone).
+        root = os.path.join(str(workdir), FOLDER)
+        self.folder = os.path.join(root, self.key)
         os.makedirs(self.folder, exist_ok=True)
-        if not os.path.isfile(marker):
-            files.atomic_write(marker, self.key + "\n")
+        if primary:
+            for other in os.listdir(root):
+                if other != self.key:
+                    shutil.rmtree(os.path.join(root, other), ignore_errors=True)
 
     def _path(self, method, scene):
         name = re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{scene}__{method}")

@@ -10,14 +10,14 @@ from sphere_jax.data import evaluation_scenes as es
 
 CLEAN = ["shared/open3d_testdata/Feature", "shared/open3d_testdata/RGBD",
          "shared/modelnet40/modelnet40_normal_resampled",
-         "embedded/synthetic-v2-seed0/3dmatch/synth-room-0", "/data/my_scans/office.ply"]
+         "embedded/rooms-v2-seed1/3dmatch/synth-room-s1-0", "/data/my_scans/office.ply"]
 
 
 @pytest.mark.parametrize("scene", es.EVALUATION_SCENES, ids=lambda s: s.name)
 def test_every_source_of_a_scene_is_recognised(scene):
     for source in scene.sources:
-        assert es.scene_of("shared/" + source) is scene
-        assert es.scene_of("shared/" + source + "/sub/cloud_bin_0.ply") is scene \
+        assert es.scene_of(source) is scene
+        assert es.scene_of(source + "/sub/cloud_bin_0.ply") is scene \
             or source.endswith((".ply", ".pcd"))
 
 
@@ -28,6 +28,9 @@ def test_names_and_real_paths_are_recognised_and_clean_ones_are_not():
         "sun3d-home_at"
     assert es.scene_of("shared/rgbd/3dmatch_toolbox/rgbd-frames (fused RGB-D)").name == \
         "redkitchen"
+    from sphere_jax.data import pipeline               # the main job's rooms, not the others
+    assert es.scene_of(pipeline.entry_path("embedded")).name == "embedded rooms"
+    assert es.scene_of(pipeline.entry_path("embedded:1")) is None
     root = paths.real_data_root()
     if root:
         assert es.scene_of(os.path.join(root, "open3d_testdata", "fragment.pcd")).name == \
