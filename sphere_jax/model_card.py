@@ -129,7 +129,8 @@ def render(bundle_dir):
         out += [f"- wall time of the training loop: "
                 f"{wall_time_s(lines, train.batch_size) / 60:.1f} min"]
     folders = data.get("folders", {})
-    out += ["- data: " + ", ".join(f"`{k}` ({v} scans)" if v is not None else f"`{k}`"
+    unit = "shapes" if data.get("kind") == "shapes" else "scans"
+    out += ["- data: " + ", ".join(f"`{k}` ({v} {unit})" if v is not None else f"`{k}`"
                                    for k, v in folders.items())]
     if "keypoints" in data:
         out += [f"- keypoints: {data['keypoints'].get('train')} training, "
