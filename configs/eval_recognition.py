@@ -8,7 +8,7 @@ views are searched, plain and with Saliency Boost (spectral-residual saliency, n
 weights). Writes recognition.csv / recognition.md (AUC, keypoints and seconds per stage per
 frame), pr_curves.png and time_vs_auc.png. Expected on the embedded frames: boosting cuts the
 scene keypoints and the time per frame by 2–3x; how much AUC it costs or gains depends on the
-descriptor (see the README's results).
+descriptor.
 """
 from configs import eval_common
 

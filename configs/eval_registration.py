@@ -8,15 +8,12 @@
 Writes results.csv / results.md (rows = methods, columns = scenes + mean: FMR, inlier ratio,
 correct matches, registration recall, RRE, RTE, ms per keypoint) and fmr_vs_tau2.png.
 Arguments: '' (5000 keypoints, every pair), 'quick' (2500 keypoints, 8 pairs per scene: the
-README's main job, with the shipped LEAD and LEAD-PN), 'tiny' (tests). Expected on the real
-redkitchen pairs: every method but FPFH matches all pairs; the shipped 'mid' LEAD-PN and LEAD
-have 3.4x and 4.4-4.8x FPFH's inlier ratio, LEAD (Compass) 0.376 against SHOT's 0.368 (USC
-0.405), with the most correct matches per pair (363) — see the README's results.
+README's main job, with the shipped LEAD and LEAD-PN), 'tiny' (tests). What it measures: how
+well each descriptor's mutual nearest neighbours match corresponding points of overlapping
+scans, and whether RANSAC registers them; the published tables are in docs/results.md.
 ``lead_vote`` and ``shot_vote`` add the pair vote (``sphere_jax.eval.voting``: a first pass in
-the methods' own LRFs votes the pair's rotation, the second describes both scans in it; on
-redkitchen LEAD 0.670 / 464 correct per pair, SHOT 0.651 / 402; on 3DLoMatch LEAD registers
-4 of 5 pairs, SHOT 1); ``lead_gt`` and ``shot_gt``
-the ground-truth-frame diagnostics (upper bounds, not methods).
+the methods' own LRFs votes the pair's rotation, the second describes both scans in it);
+``lead_gt`` and ``shot_gt`` the ground-truth-frame diagnostics (upper bounds, not methods).
 """
 from configs import eval_common
 
