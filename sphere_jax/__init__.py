@@ -33,9 +33,13 @@ def load_bundle(path):
 
 
 def _bundle(bundle_or_path):
+    from sphere_jax import api, checks
     if isinstance(bundle_or_path, (str, bytes)) or hasattr(bundle_or_path, "__fspath__"):
-        from sphere_jax import api
         return api.cached_bundle(bundle_or_path)
+    if not isinstance(bundle_or_path, api.Bundle):
+        raise checks.InputError("bundle", "a Bundle, a bundle folder or a shipped model kind "
+                                "('compass', 'lead', 'lead_pn', 'sound')",
+                                checks.shown(bundle_or_path))
     return bundle_or_path
 
 

@@ -100,6 +100,9 @@ def _from_open3d(points):
     if not kind.startswith("open3d"):
         return points
     if hasattr(points, "point"):                                   # open3d.t.geometry
+        # An empty tensor cloud has no 'positions' attribute at all (open3d's KeyError).
+        if "positions" not in points.point:
+            return np.zeros((0, 3), np.float32)
         return points.point.positions.numpy()
     return np.asarray(points.points)
 

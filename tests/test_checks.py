@@ -127,3 +127,16 @@ def test_one_base_class_catches_every_refusal(tmp_path):
             make()
     assert issubclass(sphere_jax.SphereJaxError, ValueError)
     assert issubclass(checks.MissingError, FileNotFoundError)
+
+
+def test_bundle_arguments_and_empty_tensor_clouds_get_our_errors():
+    import open3d as o3d
+
+
+    pts = np.random.default_rng(0).random((100, 3)).astype(np.float32)
+    for bad in (None, 3):
+        with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be a Bundle, a bundle "
+                                                            "folder or a shipped model kind"):
+            sphere_jax.orient(bad, pts, [0])
+    with pytest.raises(sphere_jax.SphereJaxError, match="points must be a non-empty cloud"):
+        checks.cloud(o3d.t.geometry.PointCloud())

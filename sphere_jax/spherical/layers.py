@@ -68,6 +68,12 @@ class _SphericalConv(nn.Module):
                                  f"(bandwidth {b})")
             c_in = x.shape[-grid_ndim - 1]
         grid = _resolve_grid(self.grid, self.on_so3, self.b_in)
+        if self.has_variable("params", "kernel"):        # applied with trained parameters
+            have = self.get_variable("params", "kernel").shape
+            if have[-2] != c_in or have[-1] != self.features:
+                raise checks.InputError(f"the input of {type(self).__name__}",
+                                        f"{have[-2]} channels (its parameters map {have[-2]} "
+                                        f"to {have[-1]})", f"{c_in} channels")
         w = self.param("kernel", kernel_init(self.gain, grid.size * c_in),
                        grid.shape + (c_in, self.features))
         if spectral:

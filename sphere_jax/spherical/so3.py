@@ -99,6 +99,24 @@ def sphere_points(beta, alpha):
 # SOFT grids and quadrature (float64 numpy constants).
 # ----------------------------------------------------------------------------------------------
 
+def check_rotation(rot_33, name="rot_33", tol=1e-3):
+    """``rot_33`` if it is a ``[3, 3]`` rotation: the shape always, and RᵀR = I, det R = +1
+    within ``tol`` when its values are concrete (not under jit); an error naming ``name``
+    otherwise (a wrong shape would fail deep in an einsum, a scaled matrix silently scale
+    the signal)."""
+    shape = tuple(getattr(rot_33, "shape", np.shape(rot_33)))
+    if shape != (3, 3):
+        raise ValueError(f"{name} must be a rotation matrix [3, 3]; got shape {shape}")
+    if isinstance(rot_33, jax.core.Tracer):
+        return rot_33
+    r = np.asarray(rot_33, np.float64)
+    err = np.abs(r.T @ r - np.eye(3)).max() if np.isfinite(r).all() else np.inf
+    if err > tol or abs(np.linalg.det(r) - 1) > tol:
+        raise ValueError(f"{name} must be a rotation (RᵀR = I and det R = +1 within {tol}); "
+                         f"got |RᵀR − I| = {err:.3g}, det R = {np.linalg.det(r):.4g}")
+    return rot_33
+
+
 def check_bandwidth(b, name="bandwidth"):
     if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or b < 1:
         raise ValueError(f"{name} must be a positive integer, got {b!r}")

@@ -242,6 +242,7 @@ def s2_full_m(c):
 
 
 def _wigner_D_at(lmax, rot_33):
+    rot_33 = so3.check_rotation(rot_33)
     return wigner.wigner_D_jax(lmax, *so3.matrix_to_euler(rot_33))   # [l, m, m']
 
 

@@ -115,3 +115,11 @@ def test_bad_inputs():
         layers.S2Conv(features=2, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x)
     with pytest.raises(ValueError, match=r"SO\(3\) grid \[N, C, 2B, 2B, 2B\]"):
         layers.SO3Conv(features=2, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x[:, 0])
+
+
+def test_parameters_of_another_channel_count_are_named():
+    conv = layers.SO3Conv(features=4, b_in=4, b_out=4)
+    v = conv.init(jax.random.PRNGKey(0), jnp.ones((1, 3, 8, 8, 8)))
+    with pytest.raises(ValueError, match=r"input of SO3Conv must be 3 channels \(its "
+                                         r"parameters map 3 to 4\); got 6 channels"):
+        conv.apply(v, jnp.ones((1, 6, 8, 8, 8)))

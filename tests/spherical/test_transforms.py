@@ -1,5 +1,6 @@
 import numpy as np
 import jax
+import jax.numpy as jnp
 import pytest
 
 from sphere_jax.spherical import so3, transforms
@@ -93,3 +94,18 @@ def test_bad_inputs():
         transforms.so3_ifft(np.zeros((4, 6, 4), np.complex64))
     with pytest.raises(ValueError, match="lmax=5 exceeds"):
         transforms.s2_ifft(np.zeros((5, 5), np.complex64), 3)
+
+
+@pytest.mark.parametrize("rot, message", [
+    (np.eye(2), r"rot_33 must be a rotation matrix \[3, 3\]; got shape \(2, 2\)"),
+    (2 * np.eye(3), r"must be a rotation \(RᵀR = I and det R = \+1 within 0.001\); got "
+                    r"\|RᵀR − I\| = 3"),
+    (np.diag([1.0, 1.0, -1.0]), r"det R = -1"),
+])
+def test_a_rotation_that_is_not_one_is_refused_eagerly(rot, message):
+    x = jnp.ones((8, 8))
+    with pytest.raises(ValueError, match=message):
+        transforms.rotate_s2(x, rot)
+    r = so3.random_rotation(jax.random.PRNGKey(0))          # and under jit it still runs
+    np.testing.assert_allclose(jax.jit(transforms.rotate_s2)(x, r), transforms.rotate_s2(x, r),
+                               atol=1e-5)
