@@ -3,7 +3,6 @@ card states its command, steps, data and validation curve; an evaluation's run r
 docs' section, the README's headline block and the cards' evaluation sections follow it."""
 import csv
 import json
-import os
 
 from configs import eval_registration, lead
 from experiments import publish
