@@ -80,11 +80,16 @@ def headline_table(run_dir) -> str:
     return "\n".join(out)
 
 
-def section(record, markdown) -> str:
+def split_title(record, markdown):
+    """``(title, body)`` of a run's markdown: its first heading, else the task's name."""
     lines = markdown.strip().splitlines()
-    title = lines[0].lstrip("# ").strip() if lines and lines[0].startswith("#") else \
-        record["task"]
-    body = "\n".join(lines[1:] if lines and lines[0].startswith("#") else lines)
+    if lines and lines[0].startswith("#"):
+        return lines[0].lstrip("# ").strip(), "\n".join(lines[1:])
+    return record["task"], "\n".join(lines)
+
+
+def section(record, markdown) -> str:
+    title, body = split_title(record, markdown)
     body = re.sub(r"^# ", "### ", body, flags=re.M)
     return f"## {title}\n\n{stamp(record)}\n{body}\n"
 
@@ -114,8 +119,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README):
         for kind, b in record.get("bundles", {}).items():
             path = b["path"] if os.path.isabs(b["path"]) else os.path.join(REPO, b["path"])
             if os.path.isdir(path):
-                title = md.strip().splitlines()[0].lstrip("# ") if md.strip() else record["task"]
-                model_card.add_evaluation(path, title, md.split("\n", 1)[-1],
+                model_card.add_evaluation(path, *split_title(record, md),
                                           record.get("command") or "", record["date"])
     return results
 

@@ -7,7 +7,7 @@ A bundle is a folder::
     bundle/training_data.json   what the bundle was trained on: folders, scans, patches
 
 A bundle is written whole into a temporary folder beside it and swapped in
-(:func:`sphere_jax.files.replacing`): a full disk or a kill mid-write leaves the previous
+(:func:`sphere_jax.files.swap_folders`): a full disk or a kill mid-write leaves the previous
 bundle as it was. A folder whose ``config.json`` is missing is not a bundle. :func:`sphere_jax.api.load_bundle`
 turns a folder into a model; this module only reads and writes the files.
 """
@@ -73,6 +73,12 @@ def save(path, config, variables, training_data=None):
         raise
     return path
 
+
+
+def steps_done(config) -> int:
+    """The training steps a bundle's ``config`` has done (``train.steps`` for bundles that
+    ran their plan before ``steps_done`` was recorded)."""
+    return int(config.train.get("steps_done", config.train.steps))
 
 
 def is_bundle(path) -> bool:

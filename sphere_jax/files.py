@@ -20,16 +20,13 @@ def _tmp_name(path, suffix=""):
 
 @contextlib.contextmanager
 def replacing(path, suffix=""):
-    """``with replacing(path) as tmp:`` write to ``tmp`` (a file or a folder); on success it
-    replaces ``path``, on an error it is removed and ``path`` is untouched. ``suffix``: for
-    writers that choose a format by extension (``.png``)."""
+    """``with replacing(path) as tmp:`` write the file ``tmp``; on success it replaces
+    ``path``, on an error it is removed and ``path`` is untouched. ``suffix``: for writers
+    that choose a format by extension (``.png``)."""
     tmp = _tmp_name(path, suffix)
     try:
         yield tmp
-        if os.path.isdir(tmp) and os.path.isdir(path):
-            swap_folders(tmp, str(path))
-        else:
-            os.replace(tmp, path)
+        os.replace(tmp, path)
     except BaseException:
         _remove(tmp)
         raise

@@ -93,9 +93,9 @@ def write(bundle_dir, metrics_path, command=None):
     if metrics_path and os.path.isfile(metrics_path) and \
             os.path.abspath(metrics_path) != os.path.abspath(os.path.join(bundle_dir, METRICS)):
         with open(metrics_path) as f:
-            bundle.write_json(os.path.join(bundle_dir, METRICS), f.read())
+            files.atomic_write(os.path.join(bundle_dir, METRICS), f.read())
     if command:
-        bundle.write_json(os.path.join(bundle_dir, "command.txt"), command.strip() + "\n")
+        files.atomic_write(os.path.join(bundle_dir, "command.txt"), command.strip() + "\n")
     return render(bundle_dir)
 
 
@@ -108,7 +108,7 @@ def render(bundle_dir):
     command_file = os.path.join(bundle_dir, "command.txt")
     command = open(command_file).read().strip() if os.path.isfile(command_file) else None
     train = config.train
-    done = int(train.get("steps_done", train.steps))
+    done = bundle.steps_done(config)
     out = [f"# {config.model} ({config.get('size', '')})", ""]
     out += ["Generated from this bundle's files by `sphere_jax.model_card`; do not edit.", ""]
     out += ["## Training", ""]
@@ -155,7 +155,7 @@ def render(bundle_dir):
         for name, ev in sorted(evaluations.items()):
             out += [f"### {name}", "", f"{ev['date']}:", "", "```bash", ev["command"], "```",
                     "", ev["table"].strip(), ""]
-    bundle.write_json(os.path.join(bundle_dir, CARD), "\n".join(out).rstrip() + "\n")
+    files.atomic_write(os.path.join(bundle_dir, CARD), "\n".join(out).rstrip() + "\n")
     return os.path.join(bundle_dir, CARD)
 
 
@@ -178,7 +178,7 @@ def weights_index(root, shipped) -> str:
         kwargs = kwargs.to_dict() if hasattr(kwargs, "to_dict") else kwargs
         net = ", ".join(f"{k}={tuple(v) if isinstance(v, list) else v}" for k, v in
                         kwargs.items() if "decoder" not in k)
-        done = int(config.train.get("steps_done", config.train.steps))
+        done = bundle.steps_done(config)
         command_file = os.path.join(path, "command.txt")
         command = open(command_file).read().strip() if os.path.isfile(command_file) else ""
         folders = ", ".join(f"{k} ({v})" if v is not None else k
@@ -186,5 +186,5 @@ def weights_index(root, shipped) -> str:
         out.append(f"| {kind} | `{folder}` | {net} | {done} / {config.train.steps} × "
                    f"{config.train.batch_size} | {folders} | `{command}` |")
     text = "\n".join(out) + "\n"
-    bundle.write_json(os.path.join(root, "README.md"), text)
+    files.atomic_write(os.path.join(root, "README.md"), text)
     return os.path.join(root, "README.md")

@@ -427,7 +427,7 @@ def continued_bundle(config):
     fields = SCHEDULE if config.train.get("schedule", "constant") != "constant" else \
         ("batch_size", "learning_rate", "schedule")
     _check_same(config, trained, fields, "init_bundle", section="train")
-    done = steps_done(trained)
+    done = bundle.steps_done(trained)
     if done >= config.train.steps:
         raise checks.ConfigError(f"train.init_bundle={path!r} has {done} steps done; "
                                  f"train.steps={config.train.steps} must be more")
@@ -439,12 +439,6 @@ SCHEDULE = ("steps", "batch_size", "learning_rate", "schedule", "warmup_steps",
             "final_lr_fraction")
 # config.train fields added after bundles were first written, with the value those had.
 TRAIN_ADDED = {"schedule": "constant", "warmup_steps": 0, "final_lr_fraction": 1.0}
-
-
-def steps_done(config):
-    """The training steps a bundle's ``config`` has done (``train.steps`` for bundles that
-    ran their plan before ``steps_done`` was recorded)."""
-    return int(config.train.get("steps_done", config.train.steps))
 
 
 def finetuned_bundle(config):

@@ -82,12 +82,12 @@ def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_roo
     assert [json.loads(ln)["step"] for ln in lines] == [1]
     assert "val_loss" in json.loads(lines[0])
     stopped = bundle.read_config(str(tmp_path / "bundle"))
-    assert training.steps_done(stopped) == 1 and stopped.train.steps == 3    # done, planned
+    assert bundle.steps_done(stopped) == 1 and stopped.train.steps == 3    # done, planned
     c.train.time_budget_s = 0.0
     training.train_and_evaluate(c, str(tmp_path), progress=False)
     steps = [json.loads(ln)["step"] for ln in (tmp_path / "metrics.jsonl").read_text().splitlines()]
     assert steps == [1, 2, 3]
-    assert training.steps_done(bundle.read_config(str(tmp_path / "bundle"))) == 3
+    assert bundle.steps_done(bundle.read_config(str(tmp_path / "bundle"))) == 3
 
 
 def _max_change(bundle_a, bundle_b):
@@ -301,7 +301,7 @@ def test_a_continued_run_keeps_the_schedule_of_the_uninterrupted_one(small_root,
                        (tmp_path / w / "metrics.jsonl").read_text().splitlines()}
     first = tiny("lead", small_root, steps=6, time_budget_s=1e-9, **sched)
     training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
-    assert training.steps_done(bundle.read_config(str(tmp_path / "a" / "bundle"))) == 1
+    assert bundle.steps_done(bundle.read_config(str(tmp_path / "a" / "bundle"))) == 1
     more = tiny("lead", small_root, steps=6, init_bundle=str(tmp_path / "a" / "bundle"), **sched)
     training.train_and_evaluate(more, str(tmp_path / "b"), progress=False)
     expected = rates("whole")

@@ -53,11 +53,14 @@ def resolve_root(entry):
     ``shared/<rel>`` a path under the real scans (``../shared/data``: the same config on
     every machine), anything else a path."""
     entry = str(entry)
-    if entry == "embedded" or entry == "embedded:0":
-        return default_scan_root()
-    if entry.startswith("embedded:"):
-        return synthetic.ensure_training_rooms(_rooms_seed(entry))
+    if entry in DEFAULT_ROOMS:
+        synthetic.ensure_default_data()
+    elif entry.startswith("embedded:"):
+        synthetic.ensure_training_rooms(_rooms_seed(entry))
     return entry_path(entry)
+
+
+DEFAULT_ROOMS = ("embedded", "embedded:0")      # the embedded default data's rooms
 
 
 def _rooms_seed(entry):
@@ -71,7 +74,7 @@ def entry_path(entry):
     """Where a ``data.root`` entry's scans are (or will be, for synthetic data not yet
     generated): :func:`resolve_root` without generating anything."""
     entry = str(entry)
-    if entry == "embedded" or entry == "embedded:0":
+    if entry in DEFAULT_ROOMS:
         return os.path.join(synthetic.default_data_dir(0), "3dmatch")
     if entry.startswith("embedded:"):
         return synthetic.training_rooms_dir(_rooms_seed(entry))

@@ -59,23 +59,20 @@ def run(config, workdir, progress=True, command=None):
 
 def bundles_used(config):
     """Kind -> ``{'path', 'steps_done'}`` of the bundles an evaluation config names."""
-    from sphere_jax import bundle, paths
+    from sphere_jax import api, bundle, paths
+    from sphere_jax.eval import methods
     out = {}
     if "bundles" not in config:
         return out
-    chosen = dict(config.bundles.to_dict())
-    if config.get("bundle") and bundle.is_bundle(config.bundle):
-        chosen[bundle.read_config(config.bundle).model] = config.bundle
+    chosen = methods.bundle_paths(config)
     names = [m.strip() for m in str(config.get("methods", "")).split(",") if m.strip()]
     if names:                                         # only the kinds the methods use
-        from sphere_jax.eval.methods import BUNDLE_OF
-        needed = {k for m in names for k in BUNDLE_OF.get(m, ())}
+        needed = {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
         chosen = {k: v for k, v in chosen.items() if k in needed}
     for kind, path in sorted(chosen.items()):
-        path = paths.shipped_bundle(path) if path and not os.path.isdir(str(path)) else path
+        path = api.bundle_path(path) if path else path
         if path and bundle.is_bundle(path):
-            c = bundle.read_config(path)
             inside = not paths.relative(path).startswith("..")
             out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
-                         "steps_done": int(c.train.get("steps_done", c.train.steps))}
+                         "steps_done": bundle.steps_done(bundle.read_config(path))}
     return out
