@@ -46,19 +46,24 @@ def read_run(run_dir):
     return record, markdown
 
 
-def stamp(record) -> str:
-    """One line: the command, the data, the bundles and their steps, the date and wall
-    time."""
-    bundles = ", ".join(f"{k} `{v['path']}` ({v['steps_done']} steps)"
-                        for k, v in record.get("bundles", {}).items())
+def data_of(record) -> str:
+    """What a run evaluated on: the data root, rotated or not, its ground truth."""
     data = record.get("config", {}).get("data", {})
     where = data.get("root") or "the embedded synthetic data"
     if record.get("config", {}).get("rotate"):
         where += ", every scan rotated"
     if data.get("gt"):
         where += f", ground truth {data['gt']}"
+    return where
+
+
+def stamp(record) -> str:
+    """One line: the command, the data, the bundles and their steps, the date and wall
+    time."""
+    bundles = ", ".join(f"{k} `{v['path']}` ({v['steps_done']} steps)"
+                        for k, v in record.get("bundles", {}).items())
     return (f"`{record.get('command') or 'python -m experiments.evaluate'}`\n\n"
-            f"Data: {where}. Bundles: {bundles or 'none'}. Run {record['date']}, "
+            f"Data: {data_of(record)}. Bundles: {bundles or 'none'}. Run {record['date']}, "
             f"{record['wall_s'] / 60:.0f} min.")
 
 
@@ -119,7 +124,9 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README):
         for kind, b in record.get("bundles", {}).items():
             path = b["path"] if os.path.isabs(b["path"]) else os.path.join(REPO, b["path"])
             if os.path.isdir(path):
-                model_card.add_evaluation(path, *split_title(record, md),
+                # One entry per task and data: redkitchen and the bunny share a title.
+                title, body = split_title(record, md)
+                model_card.add_evaluation(path, f"{title} on {data_of(record)}", body,
                                           record.get("command") or "", record["date"])
     return results
 

@@ -4,9 +4,12 @@ docs' section, the README's headline block and the cards' evaluation sections fo
 import csv
 import json
 
+import jax.numpy as jnp
+import ml_collections
+
 from configs import eval_registration, lead
 from experiments import publish
-from sphere_jax import model_card, training
+from sphere_jax import bundle, model_card, training
 from sphere_jax.eval import tasks
 
 README = "# x\n\nabove\n\n<!-- headline:begin -->\nold\n<!-- headline:end -->\n\nbelow\n"
@@ -52,3 +55,26 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
     assert "`python -m experiments.evaluate X`" in open(out).read()
     card = (path / model_card.CARD).read_text()
     assert "## Evaluations" in card and "python -m experiments.evaluate X" in card
+
+
+def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
+    """Two LRF runs share the table title; the card keeps both, named by their data."""
+    path = tmp_path / "bundle"
+    bundle.save(path, ml_collections.ConfigDict({"model": "compass", "data": {"root": "x"},
+                                                 "train": {"steps": 1, "batch_size": 1,
+                                                           "learning_rate": 1e-3}}),
+                {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    runs = []
+    for name, root in (("a", "/data/kitchen"), ("b", "/data/bunny")):
+        run = tmp_path / f"run_{name}"
+        run.mkdir()
+        (run / "run.json").write_text(json.dumps({
+            "command": f"evaluate {name}", "task": "lrf", "config": {"data": {"root": root}},
+            "bundles": {"compass": {"path": str(path), "steps_done": 1}},
+            "date": "2026-01-01", "wall_s": 60}))
+        (run / "lrf_results.md").write_text(f"# LRF repeatability\n\n| {name} |\n")
+        runs.append(str(run))
+    publish.publish(runs, results=str(tmp_path / "results.md"))
+    card = (path / model_card.CARD).read_text()
+    assert "### LRF repeatability on /data/kitchen" in card
+    assert "### LRF repeatability on /data/bunny" in card
