@@ -11,8 +11,8 @@ Arguments: '' (5000 keypoints, every pair), 'quick' (2500 keypoints, 8 pairs per
 README's main job, with the shipped LEAD and LEAD-PN), 'tiny' (tests). What it measures: how
 well each descriptor's mutual nearest neighbours match corresponding points of overlapping
 scans, and whether RANSAC registers them; the published tables are in docs/results.md.
-``lead_vote`` and ``shot_vote`` add the pair vote (``sphere_jax.eval.voting``: a first pass in
-the methods' own LRFs votes the pair's rotation, the second describes both scans in it);
+``lead_vote`` and ``shot_vote`` add the pair vote (``sphere_jax.registration.vote``: a first
+pass in the methods' own LRFs votes the pair's rotation, the second describes both scans in it);
 ``lead_gt`` and ``shot_gt`` the ground-truth-frame diagnostics (upper bounds, not methods).
 """
 from configs import eval_common
@@ -27,7 +27,7 @@ def get_config(arg=None):
     c.ransac_distance = 0.05
     c.ransac_iterations = 50_000
     c.vote_hypotheses = 5             # modes of a pair's vote that RANSAC's consensus chooses from
-    c.vote_box = True                 # ... and the box turns of the strongest (voting.box_orbit)
+    c.vote_box = True                 # ... and the box turns of the strongest (vote.box_orbit)
     c.tau2_curve = [0.0, 0.01, 0.02, 0.03, 0.05, 0.075, 0.1, 0.15, 0.2]
     if c.size == "quick":
         c.methods = "fpfh,shot,lead,lead_pn"

@@ -95,7 +95,7 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
     Returns:
       ``[K, D]`` float32 descriptors (D = 512 for the shipped bundles); compare them with the
       Euclidean distance (e.g. mutual nearest neighbours,
-      :func:`sphere_jax.eval.registration.mutual_matches`).
+      :func:`sphere_jax.registration.mutual_matches`).
     """
     return _bundle(bundle).describe(points, keypoints, radius=radius, chunk=chunk, seed=seed,
                                     frames=frames, workers=workers, on_invalid=on_invalid,

@@ -21,7 +21,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sphere_jax import checks, paths
-from sphere_jax.data import o3d_convert
+from sphere_jax.registration.estimation import (SCREEN_ITERATIONS, consensus,
+                                                point_to_plane_icp, ransac_consensus)
+from sphere_jax.registration.fragments import fragment
+from sphere_jax.registration.matching import mutual_matches
 
 TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel and data.radius
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
@@ -94,11 +97,6 @@ def auto_scale(source, target):
     return voxel, voxel * TRAIN_RADIUS / TRAIN_VOXEL
 
 
-def _fragment(name, points, voxel, n_keypoints, seed):
-    from sphere_jax.eval import scenes
-    return scenes.fragment(name, points, voxel, np.random.default_rng(seed), n_keypoints)
-
-
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
              n_keypoints=5000, seed=0, bundle=None, icp=True, min_inliers=MIN_INLIERS,
              min_fitness=MIN_FITNESS) -> Registration:
@@ -109,7 +107,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       method: a learned descriptor (``lead_pn``, the default; ``lead``, ``lead_compass``,
         ``sound``: the shipped bundles), a hand-crafted one (``fpfh``, ``shot``, ``spin``,
         ``usc``), or one with the pair vote (``lead_vote``, ``shot_vote``:
-        :mod:`sphere_jax.eval.voting`; on the redkitchen pairs they nearly double the
+        :mod:`sphere_jax.registration.vote`; on the redkitchen pairs they nearly double the
         inlier ratio; ``lead_vote`` costs what ``lead_compass`` does, plus the matching).
       voxel, radius: grid size and support radius in the clouds' unit, or ``"auto"``
         (:func:`auto_scale`).
@@ -120,7 +118,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
         voxelised points in a cloud or ``MIN_MATCHES`` mutual matches.
     """
-    from sphere_jax.eval import methods, registration, voting
+    from sphere_jax.features import methods, voted
     checks.choice(method, "method", LEARNED + HANDCRAFTED + VOTED)
     source, target = (_points(x, name) for x, name in ((source, "source"), (target, "target")))
     auto_voxel, auto_radius = (auto_scale(source, target) if "auto" in (voxel, radius)
@@ -144,8 +142,8 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if few:
         return fail(reason="too few points: " + ", ".join(f"{n} has {k}" for n, k in few)
                     + f" (at least {MIN_POINTS})")
-    src = _fragment("source", source, voxel, n_keypoints, seed)
-    dst = _fragment("target", target, voxel, n_keypoints, seed + 1)
+    src = fragment("source", source, voxel, np.random.default_rng(seed), n_keypoints)
+    dst = fragment("target", target, voxel, np.random.default_rng(seed + 1), n_keypoints)
     lap("voxels, normals, keypoints")
     few = [(name, len(f.points)) for name, f in (("source", src), ("target", dst))
            if len(f.points) < MIN_POINTS]
@@ -158,25 +156,24 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         from sphere_jax import api
         bundles[api.load_bundle(bundle).kind] = api.bundle_path(bundle)
     if method in VOTED:
-        voted = voting.voted_frames(method, radius, bundles)
-        agree = functools.partial(registration.consensus, max_distance=distance, seed=seed)
-        screen = functools.partial(agree, iterations=registration.SCREEN_ITERATIONS)
-        inputs, _ = voted.describe_pairs({"target": dst, "source": src},
-                                         [("target", "source")], registration.mutual_matches,
-                                         agree, screen=screen)
+        frames = voted.voted_frames(method, radius, bundles)
+        agree = functools.partial(consensus, max_distance=distance, seed=seed)
+        screen = functools.partial(agree, iterations=SCREEN_ITERATIONS)
+        inputs, _ = frames.describe_pairs({"target": dst, "source": src},
+                                          [("target", "source")], mutual_matches, agree,
+                                          screen=screen)
         d_dst, d_src = inputs[("target", "source")]     # p_target = T p_source: (i, j)
     else:
         describe = methods.descriptor(method, radius, bundles)
         d_src, d_dst = describe(src), describe(dst)
     lap("descriptors")
-    ia, ib = registration.mutual_matches(d_src, d_dst)
+    ia, ib = mutual_matches(d_src, d_dst)
     lap("matching")
     if len(ia) < MIN_MATCHES:
         return fail(matches=len(ia), reason=f"{len(ia)} mutual matches (RANSAC needs "
                                             f"{MIN_MATCHES})")
-    t, inliers = registration.ransac_consensus(dst.points[dst.keypoints[ib]],
-                                               src.points[src.keypoints[ia]], distance,
-                                               seed=seed)
+    t, inliers = ransac_consensus(dst.points[dst.keypoints[ib]],
+                                  src.points[src.keypoints[ia]], distance, seed=seed)
     lap("RANSAC")
     if inliers < min_inliers:
         return Registration(t, inliers, len(ia), np.nan, np.nan, voxel, radius, method, seconds,
@@ -191,17 +188,6 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
                       f"clouds do not overlap under the found transform")
     return Registration(t, inliers, len(ia), fitness, rmse, voxel, radius, method, seconds,
                         reason)
-
-
-def point_to_plane_icp(src, dst, t_init, distance):
-    """open3d's point-to-plane ICP of two fragments (with the target's normals);
-    ``(T, fitness, rmse)``."""
-    import open3d as o3d
-    reg = o3d.pipelines.registration
-    s, d = o3d_convert.point_cloud(src.points), o3d_convert.point_cloud(dst.points, dst.normals)
-    out = reg.registration_icp(s, d, distance, np.asarray(t_init, np.float64),
-                               reg.TransformationEstimationPointToPlane())
-    return np.asarray(out.transformation), float(out.fitness), float(out.inlier_rmse)
 
 
 def _points(x, name):

@@ -113,7 +113,7 @@ def test_the_checker_finds_a_planted_cycle():
 
 @pytest.mark.parametrize("source, expected", [
     ("def f():\n    from sphere_jax import api\n", {"sphere_jax.api"}),
-    ("from sphere_jax.eval import methods as m\n", {"sphere_jax.eval.methods"}),
+    ("from sphere_jax.features import methods as m\n", {"sphere_jax.features.methods"}),
     ("import sphere_jax.paths\n", {"sphere_jax.paths"}),
 ])
 def test_function_level_imports_are_seen(tmp_path, source, expected):
@@ -135,3 +135,33 @@ def test_the_inference_api_does_not_import_open3d():
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+def _reachable(graph, roots):
+    seen, todo = set(), list(roots)
+    while todo:
+        m = todo.pop()
+        if m not in seen:
+            seen.add(m)
+            todo.extend(graph.get(m, ()))
+    return seen
+
+
+@pytest.mark.parametrize("layer, forbidden", [
+    ("sphere_jax.registration", ("sphere_jax.eval", "sphere_jax.api", "sphere_jax.features")),
+    ("sphere_jax.features", ("sphere_jax.eval",)),
+    ("sphere_jax.align", ("sphere_jax.eval",)),
+])
+def test_library_layers_do_not_reach_the_benchmarks(layer, forbidden):
+    """Registration is a library the benchmark uses, never the other way round; descriptors
+    come into it as arrays or functions, so it needs no trained bundle either."""
+    graph, _ = import_graph(_modules())
+    roots = [m for m in graph if m == layer or m.startswith(layer + ".")]
+    reached = _reachable(graph, roots)
+    bad = sorted(m for m in reached for f in forbidden if m == f or m.startswith(f + "."))
+    assert roots and not bad, bad
+
+
+def test_the_layer_check_sees_a_transitive_import():
+    graph = {"sphere_jax.align": {"sphere_jax.x"}, "sphere_jax.x": {"sphere_jax.eval.scenes"}}
+    assert "sphere_jax.eval.scenes" in _reachable(graph, ["sphere_jax.align"])

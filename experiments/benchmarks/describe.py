@@ -106,7 +106,7 @@ def measure(method, keypoints):
     """The record of one method (run in a fresh process by :func:`run`)."""
     from sphere_jax import align, paths
     from sphere_jax.data.readers import io
-    from sphere_jax.eval import methods
+    from sphere_jax.features import methods
     frag, files = _fragments(keypoints)
     t0 = time.perf_counter()
     src, dst = (io.read_points(f).points for f in files)

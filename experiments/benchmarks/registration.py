@@ -12,8 +12,8 @@ import time
 from sphere_jax import paths
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import threedmatch
-from sphere_jax.eval import methods as method_lib
 from sphere_jax.eval import registration, scenes
+from sphere_jax.features import methods as method_lib
 
 
 def run(keypoints=5000, methods=("fpfh", "shot", "lead"), **_):

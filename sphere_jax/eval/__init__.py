@@ -1,11 +1,11 @@
-"""Evaluations (numpy / open3d / scikit-learn side; models enter through inference bundles).
+"""The benchmarks (numpy / open3d / scikit-learn side). The methods they compare come from
+:mod:`sphere_jax.features` by name, the registration algorithm from
+:mod:`sphere_jax.registration`; models enter through inference bundles.
 
-* hand-crafted baselines on exact neighbourhoods: :mod:`neighbourhood`, :mod:`lrfs` (SHOT,
-  TOLDI), :mod:`descriptors` (SHOT, Spin Images, FPFH);
-* shared pieces: :mod:`scenes` (scan pairs, preparation, the rotated variant, the scans of a
-  config), :mod:`methods` (names → callables, bundle choice), :mod:`voting` (the pair vote:
-  frames voted from a first pass of matches), :mod:`report` (tables, CSV,
-  plots), :mod:`labelled` (labelled RGB-D frames, model views, Kabsch);
+* shared pieces: :mod:`scenes` (scan pairs with ground truth, preparation, the rotated
+  variant, the scans of a config), :mod:`report` (tables, CSV, plots), :mod:`labelled`
+  (labelled RGB-D frames, model views), :mod:`resume` and :mod:`processes` (interrupted and
+  multi-process runs);
 * the tasks, found by ``config.task`` through :mod:`tasks`, each with ``run(config, workdir,
   progress)``: :mod:`registration`, :mod:`repeatability` (LRFs), :mod:`classification`
   (Compass + PointNet, NR/AR), :mod:`recognition` (with :mod:`saliency`: Saliency Boost),

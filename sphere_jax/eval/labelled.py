@@ -1,6 +1,5 @@
 """Labelled RGB-D frames as the recognition and pose pipelines use them: instance labels and
-poses, the split into model and test frames, the database of model views, boxes, and the
-rigid fit of corresponding points (:func:`kabsch`)."""
+poses, the split into model and test frames, the database of model views and boxes."""
 from __future__ import annotations
 
 import dataclasses
@@ -11,19 +10,8 @@ from sklearn.neighbors import KDTree
 
 from sphere_jax.data import patches
 from sphere_jax.data.readers.rgbd import ObjectFrame
-from sphere_jax.eval.neighbourhood import estimate_normals
-from sphere_jax.eval.scenes import Fragment, transform
-
-
-def kabsch(src, dst):
-    """Rigid ``T`` minimising ``‖T src − dst‖`` (rows correspond)."""
-    cs, cd = src.mean(0), dst.mean(0)
-    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    r = vt.T @ np.diag([1, 1, d]) @ u.T
-    t = np.eye(4)
-    t[:3, :3], t[:3, 3] = r, cd - r @ cs
-    return t
+from sphere_jax.data.poses import transform
+from sphere_jax.registration.fragments import Fragment, estimate_normals
 
 
 def project_box(points_cam, intrinsics, margin=0):

@@ -22,12 +22,13 @@ from sphere_jax.data import patches
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
 from sphere_jax.data.readers.rgbd import ObjectFrame
-from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import report
-from sphere_jax.eval.labelled import (ModelView, build_database, instance_label, kabsch,
+from sphere_jax.data.poses import transform
+from sphere_jax.eval import report, tasks
+from sphere_jax.eval.labelled import (ModelView, build_database, instance_label,
                                       make_fragment, project_box, split_frames, unit_rows)
 from sphere_jax.eval.saliency import salient_mask, spectral_residual
-from sphere_jax.eval.scenes import transform
+from sphere_jax.features import methods as method_lib
+from sphere_jax.registration.estimation import kabsch
 
 IOU_OK = 0.25
 
@@ -213,8 +214,8 @@ def run(config, workdir, progress=True):
     if d.max_frames:
         test_frames = test_frames[:d.max_frames]
     database = build_database(model_frames, config.leaf, d.voxel)
-    bundles = method_lib.bundle_paths(config)
-    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
+    bundles = tasks.bundle_paths(config)
+    names = tasks.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
     describers = {m: method_lib.descriptor(m, d.radius, bundles, d.radius / 2, config.chunk)
                   for m in names}
     rows, curves = evaluate(test_frames, database, describers, config.leaf, d.voxel,

@@ -2,7 +2,8 @@
 
 For each pair (i, j) with ground truth ``p_i = T p_j``:
 
-* mutual nearest neighbours in descriptor space (blocks of a distance matrix, never all of it);
+* mutual nearest neighbours in descriptor space (:mod:`sphere_jax.registration`, as
+  ``sphere_jax.register`` matches);
 * a match is correct if ``‖p_i − T p_j‖ < τ1`` (0.10 m); inlier ratio = correct / matches;
   the pair counts towards feature-match recall if its inlier ratio exceeds ``τ2`` (5 %);
 * RANSAC (open3d) on the matches estimates ``T̂``; ``RRE = arccos((tr(R̂ᵀR) − 1)/2)``,
@@ -24,92 +25,23 @@ import jax
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax.data import o3d_convert
-from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import processes, report, resume, voting
+from sphere_jax.eval import processes, report, resume, tasks
 from sphere_jax.eval import scenes as scene_lib
+from sphere_jax.features import methods as method_lib
+from sphere_jax.features import voted
+from sphere_jax.registration.estimation import SCREEN_ITERATIONS, consensus, ransac
+from sphere_jax.registration.matching import mutual_matches
+from sphere_jax.registration.vote import HYPOTHESES, VotedFrames
 from sphere_jax.spherical import so3
 
 TAU1, TAU2 = 0.10, 0.05
 RRE_OK_DEG, RTE_OK_M = 15.0, 0.30
 
 
-def mutual_matches(desc_a_KxD, desc_b_KxD):
-    """Indices ``(ia, ib)`` of mutual nearest neighbours (Euclidean) between two sets."""
-    desc_a_KxD, desc_b_KxD = np.asarray(desc_a_KxD), np.asarray(desc_b_KxD)
-    if desc_a_KxD.ndim != 2 or desc_b_KxD.ndim != 2 or \
-            desc_a_KxD.shape[1] != desc_b_KxD.shape[1]:
-        raise ValueError(f"descriptors must be [K, D] with the same D, got {desc_a_KxD.shape} "
-                         f"and {desc_b_KxD.shape}")
-    if len(desc_a_KxD) == 0 or len(desc_b_KxD) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    ab = nearest(desc_a_KxD, desc_b_KxD)
-    ba = nearest(desc_b_KxD, desc_a_KxD)
-    ia = np.nonzero(ba[ab] == np.arange(len(desc_a_KxD)))[0]
-    return ia, ab[ia]
-
-
-def nearest(query_QxD, base_BxD, rows=1024):
-    """Index in ``base`` of each query's nearest neighbour (Euclidean), by blocks of ``rows``
-    queries: ‖q‖² − 2 q·b + ‖b‖² as one float64 matmul per block. A KD-tree degenerates to a
-    slow brute force in hundreds of dimensions (5000 × 5000 at D = 512: 3 s against 0.2 s);
-    the blocks keep memory at ``rows × B``."""
-    q, b = np.asarray(query_QxD, np.float64), np.asarray(base_BxD, np.float64)
-    b_sq = np.einsum("bd,bd->b", b, b)
-    out = np.empty(len(q), np.int64)
-    for s in range(0, len(q), rows):
-        block = q[s:s + rows]
-        out[s:s + rows] = np.argmin(b_sq[None, :] - 2.0 * block @ b.T, axis=1)
-    return out
-
-
 def rre_rte(t_est, t_gt):
     """Relative rotation error (degrees) and translation error (same unit as t)."""
     rre = np.degrees(so3.geodesic_distance_np(t_est[:3, :3], t_gt[:3, :3]))
     return float(rre), float(np.linalg.norm(t_est[:3, 3] - t_gt[:3, 3]))
-
-
-def ransac(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000, seed=0):
-    """Rigid ``T̂`` with ``dst ≈ T̂ src`` from putative correspondences (row m of each), by
-    open3d's RANSAC with its edge-length and distance pre-checks. Identity if < 3 matches."""
-    import open3d as o3d
-    if len(points_dst_Mx3) < 3:
-        return np.eye(4)
-    o3d.utility.random.seed(int(seed))
-    src, dst = o3d_convert.point_cloud(points_src_Mx3), o3d_convert.point_cloud(points_dst_Mx3)
-    corres = o3d.utility.Vector2iVector(np.repeat(np.arange(len(points_src_Mx3)), 2)
-                                        .reshape(-1, 2).astype(np.int32))
-    reg = o3d.pipelines.registration
-    result = reg.registration_ransac_based_on_correspondence(
-        src, dst, corres, max_distance, reg.TransformationEstimationPointToPoint(False), 3,
-        [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
-         reg.CorrespondenceCheckerBasedOnDistance(max_distance)],
-        reg.RANSACConvergenceCriteria(int(iterations), 0.999))
-    return np.asarray(result.transformation)
-
-
-# RANSAC that only ranks a vote's candidate frames (voting.VotedFrames): about 20 ms a
-# candidate against 0.2-3 s for the benchmark's 50 000 iterations, and a wrong frame's few
-# inliers are told from a right one's many long before that.
-SCREEN_ITERATIONS = 5000
-
-
-def ransac_consensus(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iterations=50_000,
-                     seed=0):
-    """``(T̂, inliers)``: :func:`ransac`'s transform and how many correspondences it brings
-    within ``max_distance``."""
-    t = ransac(points_dst_Mx3, points_src_Mx3, max_distance, iterations, seed)
-    moved = np.asarray(points_src_Mx3) @ t[:3, :3].T + t[:3, 3]
-    return t, int(np.sum(np.linalg.norm(moved - points_dst_Mx3, axis=1) < max_distance))
-
-
-def consensus(frag_i, frag_j, desc_i, desc_j, max_distance=0.05, iterations=50_000, seed=0):
-    """How many mutual matches of two descriptor sets one rigid transform explains (RANSAC's
-    inliers): a pair's agreement measured without its ground truth."""
-    ia, ib = mutual_matches(desc_i, desc_j)
-    return ransac_consensus(frag_i.points[frag_i.keypoints[ia]],
-                            frag_j.points[frag_j.keypoints[ib]], max_distance, iterations,
-                            seed)[1]
 
 
 def match_pair(frag_i, frag_j, desc_i, desc_j, t_gt, tau1=TAU1, ransac_distance=0.05,
@@ -164,8 +96,8 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
                    ransac_iterations=50_000, seed=0, progress=True,
                    finished=None) -> list[SceneResult]:
     """Every method of ``describers`` (name -> ``describe(fragment) -> [K, D]``, a
-    :class:`~sphere_jax.eval.methods.GroundTruthFrames` or a
-    :class:`~sphere_jax.eval.voting.VotedFrames`) on every pair of ``pair_set``, on the same
+    :class:`~sphere_jax.features.methods.GroundTruthFrames` or a
+    :class:`~sphere_jax.registration.vote.VotedFrames`) on every pair of ``pair_set``, on the same
     prepared fragments and keypoints. A voted method's rows add ``vote_rre_deg`` (the voted
     rotation's error), ``vote_support`` and ``vote_proposals`` (the first-pass matches that
     agreed with it, and all of them), ``vote_mode`` and ``box_turn_deg`` (which of the vote's
@@ -219,7 +151,7 @@ def _pair_descriptors(name, describe, frags, pair_set, progress, agree=None, scr
     describe_pair = getattr(describe, "describe_pair", None)
     bar = lambda items: tqdm(items, desc=f"{pair_set.name}: {name}", disable=not progress)
     votes = {}
-    if isinstance(describe, voting.VotedFrames):
+    if isinstance(describe, VotedFrames):
         inputs, votes = describe.describe_pairs(frags, pair_set.transforms, mutual_matches,
                                                 agree, bar, screen)
         inputs = {p: tuple(np.asarray(d, np.float32) for d in pair) for p, pair in
@@ -280,9 +212,9 @@ def _describer(name, config, bundles):
     if name in method_lib.GROUND_TRUTH:
         return method_lib.ground_truth_frames(name, radius, bundles, chunk)
     if name in method_lib.VOTED:
-        return voting.voted_frames(name, radius, bundles, chunk,
-                                   hypotheses=config.get("vote_hypotheses", voting.HYPOTHESES),
-                                   box=config.get("vote_box", True))
+        return voted.voted_frames(name, radius, bundles, chunk,
+                                  hypotheses=config.get("vote_hypotheses", HYPOTHESES),
+                                  box=config.get("vote_box", True))
     return method_lib.descriptor(name, radius, bundles, config.fpfh_radius, chunk)
 
 
@@ -290,9 +222,9 @@ def run(config, workdir, progress=True):
     """Descriptor benchmark: returns ``(rows, markdown)``; writes results.{csv,md} and
     fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the
     processes and process 0 writes the tables (:mod:`processes`)."""
-    bundles = method_lib.bundle_paths(config)
-    names = method_lib.chosen_methods(config, method_lib.DESCRIPTORS + method_lib.VOTED +
-                                      method_lib.GROUND_TRUTH, bundles)
+    bundles = tasks.bundle_paths(config)
+    names = tasks.chosen_methods(config, method_lib.DESCRIPTORS + method_lib.VOTED +
+                                 method_lib.GROUND_TRUTH, bundles)
     describers = {m: _describer(m, config, bundles) for m in names}
     finished = resume.Finished(workdir, config, bundles, primary=jax.process_index() == 0)
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,

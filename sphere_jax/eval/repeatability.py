@@ -16,9 +16,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from sphere_jax import api, models, training
-from sphere_jax.eval import methods as method_lib
-from sphere_jax.eval import processes, report
+from sphere_jax.eval import processes, report, tasks
 from sphere_jax.eval import scenes as scene_lib
+from sphere_jax.features import methods as method_lib
 from sphere_jax.spherical import so3
 
 RHO = 0.97
@@ -129,8 +129,8 @@ def run(config, workdir, progress=True):
     """LRF repeatability benchmark: returns ``(rows, markdown)``; writes lrf_results.{csv,md}
     and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir`` (scenes split over the
     processes of a ``jax.distributed`` run, :mod:`processes`)."""
-    bundles = method_lib.bundle_paths(config)
-    names = method_lib.chosen_methods(config, method_lib.LRFS, bundles)
+    bundles = tasks.bundle_paths(config)
+    names = tasks.chosen_methods(config, method_lib.LRFS, bundles)
     os.makedirs(workdir, exist_ok=True)
     if config.adapt_steps:
         bundles = adapted_bundles(config, bundles, names, workdir, progress)

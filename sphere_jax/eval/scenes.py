@@ -23,7 +23,7 @@ from sphere_jax import checks
 from sphere_jax.data import augment, patches, pipeline
 from sphere_jax.data.poses import transform
 from sphere_jax.data.readers import stanford, threedmatch
-from sphere_jax.eval.neighbourhood import estimate_normals
+from sphere_jax.registration.fragments import Fragment, fragment
 
 
 @dataclasses.dataclass
@@ -39,17 +39,6 @@ class PairSet:
     @property
     def pairs(self):
         return sorted(self.transforms)
-
-
-@dataclasses.dataclass
-class Fragment:
-    """A prepared scan: ``points [N, 3]`` float32, unit ``normals [N, 3]``, ``keypoints [K]``
-    indices into ``points``; ``tree`` a KD-tree over ``points``."""
-    key: object
-    points: np.ndarray
-    normals: np.ndarray
-    keypoints: np.ndarray
-    tree: KDTree
 
 
 def fragment_scene(scene: threedmatch.FragmentScene) -> PairSet:
@@ -147,20 +136,6 @@ def rotate(pair_set: PairSet, seed) -> tuple[PairSet, dict]:
         return None if kp is None else transform(kp, rot[k])
 
     return PairSet(pair_set.name, pair_set.keys, transforms, load, keypoints), rot
-
-
-def fragment(key, points_Nx3, voxel, rng: np.random.Generator, n_keypoints=5000, normal_k=17,
-             viewpoint=(0.0, 0.0, 0.0), given_keypoints=None) -> Fragment:
-    """Voxelise ``points_Nx3``, estimate normals, pick keypoints: ``given_keypoints`` (snapped
-    to the nearest voxelised point) or ``n_keypoints`` random points drawn with ``rng``."""
-    points = patches.voxel_downsample(points_Nx3, voxel)
-    normals = estimate_normals(points, normal_k, viewpoint)
-    tree = KDTree(points)
-    if given_keypoints is not None:
-        keypoints = tree.query(np.asarray(given_keypoints, np.float64), k=1)[1][:, 0]
-    else:
-        keypoints = patches.random_keypoints(points, n_keypoints, rng)
-    return Fragment(key, points, normals, keypoints, tree)
 
 
 def prepare(pair_set: PairSet, key, voxel=0.02, n_keypoints=5000, normal_k=17, seed=0,

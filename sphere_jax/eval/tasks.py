@@ -12,8 +12,10 @@ import importlib
 import json
 import os
 import time
+import warnings
 
-from sphere_jax import checks, workdirs
+from sphere_jax import bundle, checks, workdirs
+from sphere_jax.features import methods
 from sphere_jax.data.readers import io
 
 TASKS = {
@@ -59,12 +61,11 @@ def run(config, workdir, progress=True, command=None):
 
 def bundles_used(config):
     """Kind -> ``{'path', 'steps_done'}`` of the bundles an evaluation config names."""
-    from sphere_jax import api, bundle, paths
-    from sphere_jax.eval import methods
+    from sphere_jax import api, paths
     out = {}
     if "bundles" not in config:
         return out
-    chosen = methods.bundle_paths(config)
+    chosen = bundle_paths(config)
     names = [m.strip() for m in str(config.get("methods", "")).split(",") if m.strip()]
     if names:                                         # only the kinds the methods use
         needed = {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
@@ -76,3 +77,30 @@ def bundles_used(config):
             out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
                          "steps_done": bundle.steps_done(bundle.read_config(path))}
     return out
+
+
+def bundle_paths(config):
+    """Kind -> bundle path: the config's defaults, ``config.bundle`` replacing its kind's."""
+    paths = dict(config.bundles.to_dict())
+    if config.bundle:
+        if not bundle.is_bundle(config.bundle):
+            raise FileNotFoundError(f"bundle={config.bundle!r} is not a bundle (no config.json)")
+        paths[bundle.read_config(config.bundle).model] = config.bundle
+    return paths
+
+
+def chosen_methods(config, known, bundles):
+    """The methods ``config.methods`` names, each one of ``known``; those whose bundle is
+    missing from ``bundles`` are skipped with a warning."""
+    names = [m.strip() for m in config.methods.split(",") if m.strip()]
+    bad = [m for m in names if m not in known]
+    if bad:
+        raise ValueError(f"methods {bad} unknown; choose from {', '.join(known)}")
+    missing = methods.bundles_needed(names, bundles)
+    for m in missing:
+        warnings.warn(f"method {m!r} skipped: no bundle for {methods.BUNDLE_OF[m]} "
+                      f"(set --config.bundle or --config.bundles.<kind>)", stacklevel=2)
+    names = [m for m in names if m not in missing]
+    if not names:
+        raise ValueError("no method left to evaluate")
+    return names

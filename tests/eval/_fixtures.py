@@ -11,6 +11,7 @@ from sphere_jax import paths
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import threedmatch
 from sphere_jax.eval import scenes
+from sphere_jax.registration.fragments import Fragment
 
 
 def kitchen(shared) -> scenes.PairSet:
@@ -33,10 +34,10 @@ def bunny(shared, voxel=0.001) -> scenes.PairSet:
                                  voxel)
 
 
-def rotated_copy(frag: scenes.Fragment, rot_33) -> scenes.Fragment:
+def rotated_copy(frag: Fragment, rot_33) -> Fragment:
     """The same fragment turned about the origin (normals turned with it, keypoints kept)."""
     pts = (frag.points @ rot_33.T).astype(np.float32)
-    return scenes.Fragment(frag.key, pts, (frag.normals @ rot_33.T).astype(np.float32),
+    return Fragment(frag.key, pts, (frag.normals @ rot_33.T).astype(np.float32),
                            frag.keypoints, KDTree(pts))
 
 
@@ -50,7 +51,7 @@ def moved_pair(n_keypoints=48):
     t[:3, :3] = so3.euler_to_matrix_np(0.9, 1.3, -2.1)
     t[:3, 3] = [0.4, -0.2, 1.0]
     moved = scenes.transform(f.points, np.linalg.inv(t)).astype(np.float32)
-    g = scenes.Fragment(f.key, moved, (f.normals @ t[:3, :3]).astype(np.float32), f.keypoints,
+    g = Fragment(f.key, moved, (f.normals @ t[:3, :3]).astype(np.float32), f.keypoints,
                         KDTree(moved))
     return f, g, t
 

@@ -5,7 +5,8 @@ import os
 import pytest
 
 from configs import eval_lrf, eval_registration
-from sphere_jax.eval import methods, report, scenes, tasks
+from sphere_jax.eval import report, scenes, tasks
+from sphere_jax.features import methods
 
 
 def _read_csv(path):
@@ -60,16 +61,16 @@ def test_bad_config_values_are_named():
     c = eval_registration.get_config("tiny")
     c.methods = "fpfh,nonsense"
     with pytest.raises(ValueError, match="nonsense"):
-        methods.chosen_methods(c, ("fpfh", "shot"), {})
+        tasks.chosen_methods(c, ("fpfh", "shot"), {})
     c.data.root = "/no/such/folder"
     with pytest.raises(FileNotFoundError, match="/no/such/folder"):
         scenes.pair_sets(c)
     c.bundle = "/no/such/bundle"
     with pytest.raises(FileNotFoundError, match="bundle"):
-        methods.bundle_paths(c)
+        tasks.bundle_paths(c)
     c.methods = "fpfh,lead_pn"
     with pytest.warns(UserWarning, match="lead_pn"):
-        assert methods.chosen_methods(c, ("fpfh", "lead_pn"), {}) == ["fpfh"]
+        assert tasks.chosen_methods(c, ("fpfh", "lead_pn"), {}) == ["fpfh"]
 
 
 def test_registration_tiny_on_embedded_scenes_rotated(tmp_path):

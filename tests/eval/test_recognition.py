@@ -8,6 +8,7 @@ from sphere_jax.data import augment
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
 from sphere_jax.eval import labelled, recognition, saliency
+from sphere_jax.registration.estimation import kabsch
 
 
 def test_box_iou_hand_made():
@@ -36,7 +37,7 @@ def test_consistency_grouping_finds_the_rigid_set_among_outliers():
     scene[25:] = rng.uniform(-0.5, 0.5, (15, 3)) + [0, 0, 1]         # 15 wrong matches
     groups = recognition.consistency_groups(model, scene, 0.005, min_size=3)
     assert sorted(groups[0]) == list(range(25))
-    est = labelled.kabsch(model[groups[0]], scene[groups[0]])
+    est = kabsch(model[groups[0]], scene[groups[0]])
     assert np.abs(est - t).max() < 1e-9
 
 
@@ -70,7 +71,7 @@ def test_spectral_residual_rejects_bad_images():
 
 def test_recognition_finds_objects_on_synthetic_frames(frames):
     """SHOT with the database of the first two views per scene: above-chance AUC."""
-    from sphere_jax.eval import methods
+    from sphere_jax.features import methods
     model, test = labelled.split_frames(frames, 2)
     assert len(model) == 8 and len(test) == 16
     db = labelled.build_database(model, 0.03, 0.005)

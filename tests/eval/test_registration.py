@@ -1,16 +1,17 @@
 """Matching metrics on hand-made cases, and FPFH + RANSAC on a real 3DMatch pair."""
 import numpy as np
-import pytest
 from sklearn.neighbors import KDTree
 
 from sphere_jax.data import augment
-from sphere_jax.eval import descriptors, registration, scenes
+from sphere_jax.eval import registration, scenes
+from sphere_jax.features import descriptors
+from sphere_jax.registration.fragments import Fragment
 from tests.eval import _fixtures
 
 
 def _fragment(points, key=0):
     points = np.asarray(points, np.float32)
-    return scenes.Fragment(key, points, None, np.arange(len(points)), KDTree(points))
+    return Fragment(key, points, None, np.arange(len(points)), KDTree(points))
 
 
 def _rigid(angle_deg, t):
@@ -19,15 +20,6 @@ def _rigid(angle_deg, t):
     out[:3, :3] = [[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]]
     out[:3, 3] = t
     return out
-
-
-def test_mutual_matches_hand_made():
-    a = np.array([[0.0], [1.0], [10.0]])
-    b = np.array([[0.1], [9.5], [20.0]])
-    ia, ib = registration.mutual_matches(a, b)
-    assert ia.tolist() == [0, 2] and ib.tolist() == [0, 1]
-    with pytest.raises(ValueError, match="same D"):
-        registration.mutual_matches(a, np.zeros((3, 2)))
 
 
 def test_rre_rte_hand_made():

@@ -3,20 +3,22 @@ import numpy as np
 import pytest
 
 from sphere_jax.data import augment
-from sphere_jax.eval import methods, repeatability, scenes
+from sphere_jax.eval import repeatability, scenes
+from sphere_jax.features import methods
+from sphere_jax.registration.fragments import Fragment
 from tests.eval import _fixtures
 
 
 def test_identical_frames_are_repeatable_and_perpendicular_ones_not():
     pts = np.random.default_rng(0).uniform(-1, 1, (200, 3)).astype(np.float32)
     from sklearn.neighbors import KDTree
-    frag = scenes.Fragment(0, pts, None, np.arange(50), KDTree(pts))
+    frag = Fragment(0, pts, None, np.arange(50), KDTree(pts))
     same = lambda f, idx: np.repeat(np.eye(3)[None], len(idx), 0)
     r = repeatability.pair_repeatability(same, frag, frag, np.eye(4), 0.01)
     assert r["n"] == 50 and r["rep"] == 1.0 and r["mean_angle_deg"] < 1e-6
     turn = np.eye(4)
     turn[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]                  # 90° about z
-    moved = scenes.Fragment(1, scenes.transform(pts, np.linalg.inv(turn)).astype(np.float32),
+    moved = Fragment(1, scenes.transform(pts, np.linalg.inv(turn)).astype(np.float32),
                             None, np.arange(50), None)
     moved.tree = KDTree(moved.points)
     r = repeatability.pair_repeatability(same, frag, moved, turn, 0.01)

@@ -14,7 +14,6 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import checks
-from sphere_jax.data import o3d_convert
 
 
 @dataclasses.dataclass
@@ -78,13 +77,3 @@ def radius_neighbourhoods(points, keypoints_Kx3, radius, tree=None) -> Neighbour
                           np.bincount(owner[keep], minlength=len(keypoints_Kx3)), float(radius))
 
 
-def estimate_normals(points, k=17, viewpoint=(0.0, 0.0, 0.0)):
-    """Unit normals ``[N, 3]`` from the PCA of each point's ``k`` nearest neighbours (open3d),
-    turned towards ``viewpoint`` — the sensor, which is the origin of a 3DMatch fragment (the
-    fragment frame is its first camera's); rotating a fragment about the origin keeps it so."""
-    import open3d as o3d
-    points = checks.cloud(points, dtype=None)
-    pcd = o3d_convert.point_cloud(points)
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(int(k)))
-    pcd.orient_normals_towards_camera_location(np.asarray(viewpoint, np.float64))
-    return np.asarray(pcd.normals, np.float32)

@@ -6,7 +6,11 @@ from sklearn.neighbors import KDTree
 
 from sphere_jax import paths
 from sphere_jax.data import augment
-from sphere_jax.eval import registration, scenes, voting
+from sphere_jax.features import voted as voted_lib
+from sphere_jax.registration import estimation
+from sphere_jax.registration import vote as vote_lib
+from sphere_jax.registration.fragments import Fragment
+from sphere_jax.registration.matching import mutual_matches
 from sphere_jax.spherical import so3
 from tests.eval import _fixtures
 from tests.eval._fixtures import relative_difference as _relative
@@ -41,7 +45,7 @@ def test_vote_finds_the_rotation_of_the_agreeing_matches():
     rng = np.random.default_rng(0)
     truth = augment.random_rotations(rng)
     fa, fb = _frame_pairs(rng, truth, 300, 700, noise_deg=4.0)
-    vote = voting.vote_rotation(fa, fb, tol_deg=10.0, rows=128)
+    vote = vote_lib.vote_rotation(fa, fb, tol_deg=10.0, rows=128)
     err = np.degrees(so3.geodesic_distance_np(vote.rotation, truth))
     print(f"error {err:.2f}°, support {vote.support} of {vote.proposals}")
     assert err < 1.0 and vote.proposals == 1000
@@ -59,9 +63,9 @@ def test_vote_counts_match_a_loop_over_geodesic_distances():
               for p in proposals]
     best = proposals[int(np.argmax(counts))]
     near = [q for q in proposals if so3.geodesic_distance_np(best, q) < np.radians(10.0)]
-    mean = voting.project_to_rotation(np.mean(near, axis=0))
+    mean = vote_lib.project_to_rotation(np.mean(near, axis=0))
     # The fast vote refines twice from the same start: within a degree of one refinement.
-    vote = voting.vote_rotation(fa, fb, tol_deg=10.0, rows=7)
+    vote = vote_lib.vote_rotation(fa, fb, tol_deg=10.0, rows=7)
     assert np.degrees(so3.geodesic_distance_np(vote.rotation, mean)) < 1.0
     assert max(counts) >= 20
 
@@ -76,7 +80,7 @@ def test_later_modes_are_the_weaker_clusters_apart_from_the_stronger():
     fa_w, fb_w = _frame_pairs(rng, truth @ quarter, 150, 0, noise_deg=3.0)
     fa_t, fb_t = _frame_pairs(rng, truth, 90, 400, noise_deg=3.0)
     fa, fb = np.concatenate([fa_w, fa_t]), np.concatenate([fb_w, fb_t])
-    modes = voting.vote_rotations(fa, fb, tol_deg=10.0, hypotheses=4, rows=100)
+    modes = vote_lib.vote_rotations(fa, fb, tol_deg=10.0, hypotheses=4, rows=100)
     errors = [np.degrees(so3.geodesic_distance_np(m.rotation, truth)) for m in modes]
     print("mode errors", [f"{e:.1f}°" for e in errors], "supports", [m.support for m in modes])
     assert len(modes) == 4
@@ -86,10 +90,10 @@ def test_later_modes_are_the_weaker_clusters_apart_from_the_stronger():
     apart = [np.degrees(so3.geodesic_distance_np(a.rotation, b.rotation))
              for k, a in enumerate(modes) for b in modes[k + 1:]]
     assert min(apart) > 20.0
-    single = voting.vote_rotation(fa, fb, tol_deg=10.0)
+    single = vote_lib.vote_rotation(fa, fb, tol_deg=10.0)
     assert np.allclose(single.rotation, modes[0].rotation)
     with pytest.raises(ValueError, match="hypotheses"):
-        voting.vote_rotations(fa, fb, hypotheses=0)
+        vote_lib.vote_rotations(fa, fb, hypotheses=0)
 
 
 def test_box_orbit_holds_the_truth_when_a_box_symmetry_of_the_room_was_voted():
@@ -103,7 +107,7 @@ def test_box_orbit_holds_the_truth_when_a_box_symmetry_of_the_room_was_voted():
                + rng.normal(0, 0.05, axes.shape)) @ q.T
     quarter = so3.euler_to_matrix_np(0.0, 0.0, np.pi / 2)     # about the room's third axis
     wrong = q @ quarter @ q.T @ truth
-    orbit = voting.box_orbit(wrong, normals)
+    orbit = vote_lib.box_orbit(wrong, normals)
     errors = np.degrees([so3.geodesic_distance_np(r, truth) for r in orbit])
     print(f"nearest box turn {errors.min():.2f}°")
     assert orbit.shape == (24, 3, 3) and np.allclose(orbit[0], wrong)
@@ -111,7 +115,7 @@ def test_box_orbit_holds_the_truth_when_a_box_symmetry_of_the_room_was_voted():
     assert np.allclose(orbit @ np.swapaxes(orbit, 1, 2), np.eye(3), atol=1e-9)
     assert np.allclose(np.linalg.det(orbit), 1.0)
     with pytest.raises(ValueError, match="normals"):
-        voting.box_orbit(wrong, np.full((5, 3), np.nan))
+        vote_lib.box_orbit(wrong, np.full((5, 3), np.nan))
 
 
 def test_vote_skips_frames_it_cannot_use_and_refuses_bad_shapes():
@@ -119,19 +123,19 @@ def test_vote_skips_frames_it_cannot_use_and_refuses_bad_shapes():
     truth = augment.random_rotations(rng)
     fa, fb = _frame_pairs(rng, truth, 20, 10, noise_deg=2.0)
     fa[:5] = np.nan                             # keypoints their LRF could not orient
-    vote = voting.vote_rotation(fa, fb)
+    vote = vote_lib.vote_rotation(fa, fb)
     assert vote.proposals == 25 and vote.support == 15
     assert np.degrees(so3.geodesic_distance_np(vote.rotation, truth)) < 1.0
-    none = voting.vote_rotation(np.full((3, 3, 3), np.nan), np.full((3, 3, 3), np.nan))
+    none = vote_lib.vote_rotation(np.full((3, 3, 3), np.nan), np.full((3, 3, 3), np.nan))
     assert none.support == 0 and np.array_equal(none.rotation, np.eye(3))
     with pytest.raises(ValueError, match="frames_a and frames_b"):
-        voting.vote_rotation(fa[:, :2], fb[:, :2])
+        vote_lib.vote_rotation(fa[:, :2], fb[:, :2])
     with pytest.raises(ValueError, match="tol_deg"):
-        voting.vote_rotation(fa, fb, tol_deg=0)
+        vote_lib.vote_rotation(fa, fb, tol_deg=0)
     with pytest.raises(ValueError, match="needs bundle"):
-        voting.voted_frames("lead_vote", 0.3, {})
+        voted_lib.voted_frames("lead_vote", 0.3, {})
     with pytest.raises(ValueError, match="unknown voted method"):
-        voting.voted_frames("lead", 0.3, BUNDLES)
+        voted_lib.voted_frames("lead", 0.3, BUNDLES)
 
 
 @pytest.fixture(scope="module")
@@ -140,8 +144,8 @@ def moved_pair():
 
 
 def _vote_and_describe(name, f, g):
-    voted = voting.voted_frames(name, 0.30, BUNDLES)
-    inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches)
+    voted = voted_lib.voted_frames(name, 0.30, BUNDLES)
+    inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], mutual_matches)
     return inputs[(0, 1)], votes[(0, 1)]
 
 
@@ -185,7 +189,7 @@ def test_a_pair_without_agreeing_frames_gets_a_wrong_vote_not_an_error(moved_pai
     f, _, _ = moved_pair
     rng = np.random.default_rng(3)
     pts = rng.uniform(-1, 1, (4000, 3)).astype(np.float32)
-    noise = scenes.Fragment("noise", pts, np.tile(np.float32([0, 0, 1]), (4000, 1)),
+    noise = Fragment("noise", pts, np.tile(np.float32([0, 0, 1]), (4000, 1)),
                             np.arange(64), KDTree(pts))
     (_, d_n), vote = _vote_and_describe("shot_vote", f, noise)
     assert d_n.shape == (64, 352) and np.all(np.isfinite(d_n))
@@ -197,22 +201,22 @@ def test_a_wrong_vote_loses_to_the_first_pass_when_consensus_decides(moved_pair)
     matches little; RANSAC's consensus then keeps SHOT's first pass (in its own LRFs), which
     was right. Without a consensus the wrong second pass is what comes out."""
     f, g, t = moved_pair
-    first, again = voting._shot_vote(0.30)
+    first, again = voted_lib._shot_vote(0.30)
     rng = np.random.default_rng(4)
 
     def unrelated_frames(frag):
         desc, _, state = first(frag)
         return desc, augment.random_rotations(rng, len(frag.keypoints)), state
 
-    voted = voting.VotedFrames(unrelated_frames, again)
-    agree = lambda *args: registration.consensus(*args, iterations=5000)
-    inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches,
+    voted = vote_lib.VotedFrames(unrelated_frames, again)
+    agree = lambda *args: estimation.consensus(*args, iterations=5000)
+    inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], mutual_matches,
                                          agree)
     kept_first = votes[(0, 1)]
     (d_f, d_g) = inputs[(0, 1)]
     assert not kept_first.second_pass
     assert np.array_equal(d_f, first(f)[0]) and np.array_equal(d_g, first(g)[0])
-    _, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches)
+    _, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], mutual_matches)
     wrong = votes[(0, 1)]
     assert wrong.second_pass
     print(f"wrong vote {np.degrees(so3.geodesic_distance_np(wrong.rotation, t[:3, :3])):.0f}°")
@@ -221,11 +225,11 @@ def test_a_wrong_vote_loses_to_the_first_pass_when_consensus_decides(moved_pair)
 
 def test_consensus_counts_the_matches_one_transform_explains(moved_pair):
     f, g, t = moved_pair
-    first, _ = voting._shot_vote(0.30)
+    first, _ = voted_lib._shot_vote(0.30)
     d_f, d_g = first(f)[0], first(g)[0]
-    ia, _ = registration.mutual_matches(d_f, d_g)
-    right = registration.consensus(f, g, d_f, d_g, iterations=5000)
-    shuffled = registration.consensus(f, g, d_f, d_g[::-1], iterations=5000)
+    ia, _ = mutual_matches(d_f, d_g)
+    right = estimation.consensus(f, g, d_f, d_g, iterations=5000)
+    shuffled = estimation.consensus(f, g, d_f, d_g[::-1], iterations=5000)
     print(f"consensus {right} of {len(ia)} matches; shuffled descriptors {shuffled}")
     assert right >= 0.9 * len(ia) and shuffled < 0.3 * right
 
@@ -236,7 +240,7 @@ def test_consensus_keeps_the_weaker_mode_when_a_box_symmetry_outvotes_the_truth(
     right. SHOT binned in the wrong mode matches little; the consensus finds the second mode
     and keeps it (the truth within half a degree). With one hypothesis the wrong mode stays."""
     f, g, t = moved_pair
-    first, again = voting._shot_vote(0.30)
+    first, again = voted_lib._shot_vote(0.30)
     d_f, frames_f, _ = first(f)
     quarter = so3.euler_to_matrix_np(0.0, 0.0, np.pi / 2)
     n = len(f.keypoints)
@@ -250,12 +254,12 @@ def test_consensus_keeps_the_weaker_mode_when_a_box_symmetry_outvotes_the_truth(
                               np.einsum("ij,kjl->kil", t[:3, :3].T, frames_f))
         return desc, frames, state
 
-    agree = lambda *args: registration.consensus(*args, iterations=5000)
+    agree = lambda *args: estimation.consensus(*args, iterations=5000)
     err = lambda v: np.degrees(so3.geodesic_distance_np(v.rotation, t[:3, :3]))
     for hypotheses, mode, ok in ((3, 1, True), (1, 0, False)):
-        voted = voting.VotedFrames(rigged, again, hypotheses=hypotheses, box=False)
+        voted = vote_lib.VotedFrames(rigged, again, hypotheses=hypotheses, box=False)
         inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)],
-                                             registration.mutual_matches, agree)
+                                             mutual_matches, agree)
         vote = votes[(0, 1)]
         print(f"{hypotheses} hypotheses: mode {vote.mode}, error {err(vote):.2f}°, "
               f"second pass {vote.second_pass}")
@@ -272,7 +276,7 @@ def test_box_turns_recover_a_vote_the_room_s_symmetry_won_outright(moved_pair):
     consensus picks it (within half a degree, 90° turn reported). Without them it stays
     wrong."""
     f, g, t = moved_pair
-    first, again = voting._shot_vote(0.30)
+    first, again = voted_lib._shot_vote(0.30)
     _, frames_f, _ = first(f)
     q = np.linalg.eigh(f.normals.T.astype(np.float64) @ f.normals)[1]
     w = q @ so3.euler_to_matrix_np(0.0, 0.0, np.pi / 2) @ q.T @ t[:3, :3]
@@ -283,11 +287,11 @@ def test_box_turns_recover_a_vote_the_room_s_symmetry_won_outright(moved_pair):
             frames = np.einsum("ij,kjl->kil", w.T, frames_f)
         return desc, frames, state
 
-    agree = lambda *args: registration.consensus(*args, iterations=5000)
+    agree = lambda *args: estimation.consensus(*args, iterations=5000)
     err = lambda v: np.degrees(so3.geodesic_distance_np(v.rotation, t[:3, :3]))
     for box in (True, False):
-        voted = voting.VotedFrames(rigged, again, hypotheses=1, box=box)
-        _, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], registration.mutual_matches,
+        voted = vote_lib.VotedFrames(rigged, again, hypotheses=1, box=box)
+        _, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], mutual_matches,
                                         agree)
         vote = votes[(0, 1)]
         print(f"box {box}: error {err(vote):.2f}°, turn {vote.box_turn_deg:.0f}°, "

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sphere_jax import api, paths
-from sphere_jax.eval import methods
+from sphere_jax.features import methods
 from tests.eval import _fixtures
 from tests.eval._fixtures import relative_difference as _relative
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sphere_jax.eval.neighbourhood import Neighbourhoods
+from sphere_jax.features.neighbourhood import Neighbourhoods
 
 
 def _outer_sum(nb: Neighbourhoods, vectors_Mx3, weights_M):

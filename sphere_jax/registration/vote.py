@@ -6,13 +6,14 @@ neighbour's local coordinates are ``Fᵀ (p − k)``, and a repeatable LRF has `
 The proposals of correct matches agree, those of wrong ones scatter over SO(3): the mode — the
 proposal with the most others within ``tol_deg``, refined by the chordal mean of those — is
 the pair's rotation R̂. Both scans are then described again, scan i in the identity frame and
-scan j in R̂ᵀ: what :class:`~sphere_jax.eval.methods.GroundTruthFrames` does with the ground
+scan j in R̂ᵀ: what :class:`~sphere_jax.features.methods.GroundTruthFrames` does with the ground
 truth, with R̂ read from the two scans alone.
 
 It stays rotation-invariant: turning scan j by Q turns its LRFs by Q, so R̂ becomes R̂ Qᵀ and
-scan j's second frame Q R̂ᵀ turns with it. It serves any LRF-based descriptor; ``lead_vote``
-(LEAD, first pass in Compass's frames) and ``shot_vote`` (SHOT in its LRF) are the two the
-benchmark runs, so that the vote's gain is measured for both sides of the comparison.
+scan j's second frame Q R̂ᵀ turns with it. It serves any LRF-based descriptor (:class:`VotedFrames` takes the two passes as functions);
+:mod:`sphere_jax.features.voted` makes ``lead_vote`` (LEAD, first pass in Compass's frames) and
+``shot_vote`` (SHOT in its LRF), so that the vote's gain is measured for both sides of the
+comparison.
 
 A vote can be wrong: at low overlap a structure both scans share can outvote the few correct
 matches, and in an axis-aligned room an LRF that swaps a patch's axes the same way everywhere
@@ -27,13 +28,7 @@ import dataclasses
 import itertools
 from typing import Callable, NamedTuple
 
-import jax
 import numpy as np
-
-from sphere_jax import api
-from sphere_jax.eval import descriptors, lrfs
-from sphere_jax.eval import methods as method_lib
-from sphere_jax.models import lead as lead_model
 
 TOL_DEG = 10.0
 HYPOTHESES = 5
@@ -217,72 +212,3 @@ class VotedFrames:
                 vote, second = vote._replace(second_pass=False), (d_i, d_j)
             votes[(i, j)], inputs[(i, j)] = vote, second
         return inputs, votes
-
-
-def _shot_vote(radius):
-    def first(f):
-        nb = method_lib.neighbourhoods(f, f.keypoints, radius)
-        frames = lrfs.shot_lrf(nb)
-        return descriptors.shot(nb, f.normals, frames), frames, None
-
-    last = {}
-
-    def again(f, _, rotation_3x3):
-        # Only the last scan's supports are kept (its candidate frames come one after
-        # another): a scene's scans would hold them all.
-        if last.get("scan") is not f:
-            last.update(scan=f, nb=method_lib.neighbourhoods(f, f.keypoints, radius))
-        nb = last["nb"]
-        return descriptors.shot(nb, f.normals, method_lib.one_frame(rotation_3x3,
-                                                                     len(f.keypoints)))
-    return first, again
-
-
-def _lead_vote(radius, bundles, chunk):
-    lead = api.cached_bundle(bundles["lead"])
-    compass = api.cached_bundle(bundles["compass"])
-    turn = jax.jit(lead_model.canonical_descriptors)
-
-    def turned(maps_KxD, frames_Kx3x3):
-        side = round(maps_KxD.shape[1] ** (1 / 3))
-        cubes = maps_KxD.reshape(len(maps_KxD), side, side, side)
-        return api.stream_chunked(turn, lambda a, b: (cubes[a:b], frames_Kx3x3[a:b]),
-                                  len(cubes), chunk)
-
-    def first(f):
-        k = len(f.keypoints)
-        # LEAD's SO(3) maps in the scan's own axes, computed once: every frame after this is
-        # a spectral turn of them, not another pass of the network.
-        maps, valid = lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                    frames=method_lib.one_frame(np.eye(3), k),
-                                    on_invalid="mask")
-        maps[~valid] = 0
-        frames, oriented = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                          on_invalid="mask")
-        frames[~oriented] = np.eye(3)
-        desc = turned(maps, frames) if k else maps
-        frames[~(valid & oriented)] = np.nan          # no proposal from an undescribed keypoint
-        return desc, frames, maps
-
-    def again(f, maps, rotation_3x3):
-        if np.allclose(rotation_3x3, np.eye(3)) or not len(maps):
-            return maps
-        return turned(maps, method_lib.one_frame(rotation_3x3, len(maps)))
-    return first, again
-
-
-def voted_frames(name, radius, bundles=None, chunk=None, tol_deg=TOL_DEG,
-                 hypotheses=HYPOTHESES, box=True) -> VotedFrames:
-    """``lead_vote`` or ``shot_vote`` (:data:`~sphere_jax.eval.methods.VOTED`) with supports of
-    ``radius`` metres; ``bundles`` maps lead and compass to bundle paths; ``hypotheses`` modes
-    of each pair's vote are tried, and with ``box`` the box turns of the strongest."""
-    bundles = bundles or {}
-    if name not in method_lib.VOTED:
-        raise ValueError(f"unknown voted method {name!r}; choose from "
-                         f"{', '.join(method_lib.VOTED)}")
-    if method_lib.bundles_needed([name], bundles):
-        raise ValueError(f"method {name!r} needs bundle(s) {method_lib.BUNDLE_OF[name]} in "
-                         f"'bundles'")
-    first, again = (_shot_vote(radius) if name == "shot_vote" else
-                    _lead_vote(radius, bundles, chunk))
-    return VotedFrames(first, again, tol_deg, hypotheses, box)

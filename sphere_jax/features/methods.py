@@ -1,4 +1,4 @@
-"""The methods the benchmarks compare, by the names used in tables and configs.
+"""Every descriptor and LRF by the name tables, configs and ``sphere_jax.register`` use.
 
 Descriptors: ``describe(fragment) -> [K, D]`` for ``fragment.keypoints``; LRFs:
 ``orient(fragment, indices) -> [K, 3, 3]``. Hand-crafted ones use the exact neighbourhoods
@@ -18,7 +18,7 @@ the resampled unit patches they were trained on.
 ``shot_gt``        from each pair's ground truth, so that corresponding patches share one pose
                    exactly (:class:`GroundTruthFrames`) — how far a perfectly repeatable LRF
                    would take each
-``lead_vote``      the pair vote (:mod:`voting`): LEAD matched once in Compass's frames, the
+``lead_vote``      the pair vote (:mod:`voted`): LEAD matched once in Compass's frames, the
 ``shot_vote``      pair's rotation voted from the matches' frames, both scans described again
                    in one frame each (SHOT likewise in its LRF; registration only)
 =================  ==============================================================================
@@ -31,16 +31,14 @@ it), ``shot``, ``toldi``, ``3dsn`` (3DSmoothNet's TOLDI variant), ``compass`` an
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from typing import Callable
 
 import numpy as np
 
 from sphere_jax import api
-from sphere_jax import bundle as bundle_files
-from sphere_jax.eval import descriptors, lrfs
-from sphere_jax.eval.neighbourhood import radius_neighbourhoods
-from sphere_jax.eval.scenes import Fragment
+from sphere_jax.features import descriptors, lrfs
+from sphere_jax.features.neighbourhood import radius_neighbourhoods
+from sphere_jax.registration.fragments import Fragment
 
 DESCRIPTORS = ("fpfh", "shot", "spin", "usc", "lead", "lead_compass", "lead_pn", "sound")
 # Diagnostics that read each pair's ground truth: the registration benchmark only.
@@ -176,30 +174,3 @@ def lrf(name, radius, bundles=None, chunk=None):
     model = _bundle(bundles[name])
     return lambda f, idx: _masked(model.orient(f.points, idx, radius=radius, chunk=chunk,
                                                on_invalid="mask"), np.eye(3))
-
-
-# ---- choice from an evaluation config ----------------------------------------------------------
-
-def bundle_paths(config):
-    """Kind -> bundle path: the config's defaults, ``config.bundle`` replacing its kind's."""
-    paths = dict(config.bundles.to_dict())
-    if config.bundle:
-        if not bundle_files.is_bundle(config.bundle):
-            raise FileNotFoundError(f"bundle={config.bundle!r} is not a bundle (no config.json)")
-        paths[bundle_files.read_config(config.bundle).model] = config.bundle
-    return paths
-
-
-def chosen_methods(config, known, bundles):
-    names = [m.strip() for m in config.methods.split(",") if m.strip()]
-    bad = [m for m in names if m not in known]
-    if bad:
-        raise ValueError(f"methods {bad} unknown; choose from {', '.join(known)}")
-    missing = bundles_needed(names, bundles)
-    for m in missing:
-        warnings.warn(f"method {m!r} skipped: no bundle for {BUNDLE_OF[m]} "
-                      f"(set --config.bundle or --config.bundles.<kind>)", stacklevel=2)
-    names = [m for m in names if m not in missing]
-    if not names:
-        raise ValueError("no method left to evaluate")
-    return names

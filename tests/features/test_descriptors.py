@@ -3,8 +3,10 @@ import numpy as np
 import pytest
 
 from sphere_jax.data import augment
-from sphere_jax.eval import descriptors, lrfs, scenes
-from sphere_jax.eval.neighbourhood import radius_neighbourhoods
+from sphere_jax.eval import scenes
+from sphere_jax.features import descriptors, lrfs
+from sphere_jax.features.neighbourhood import radius_neighbourhoods
+from sphere_jax.registration.fragments import Fragment, estimate_normals
 from tests import reference
 from tests.eval import _fixtures
 
@@ -50,8 +52,7 @@ def test_handcrafted_descriptors_are_rotation_invariant(kitchen_fragment):
     (normals near grazing angles may flip when re-estimated, hence the percentile bound)."""
     f = kitchen_fragment
     rot = augment.random_rotations(np.random.default_rng(5))
-    g = scenes.Fragment(f.key, (f.points @ rot.T).astype(np.float32), None, f.keypoints, None)
-    from sphere_jax.eval.neighbourhood import estimate_normals
+    g = Fragment(f.key, (f.points @ rot.T).astype(np.float32), None, f.keypoints, None)
     from sklearn.neighbors import KDTree
     g.normals, g.tree = estimate_normals(g.points), KDTree(g.points)
     other = np.roll(f.keypoints, 1)                   # different keypoints: the chance level

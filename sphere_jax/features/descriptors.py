@@ -25,8 +25,8 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax.data import o3d_convert
-from sphere_jax.eval.lrfs import shot_lrf
-from sphere_jax.eval.neighbourhood import Neighbourhoods
+from sphere_jax.features.lrfs import shot_lrf
+from sphere_jax.features.neighbourhood import Neighbourhoods
 
 SHOT_BINS, SHOT_AZIMUTH, SHOT_ELEVATION, SHOT_RADIAL = 11, 8, 2, 2
 SHOT_DIM = SHOT_BINS * SHOT_AZIMUTH * SHOT_ELEVATION * SHOT_RADIAL

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from sphere_jax.data import augment, patches
-from sphere_jax.eval import lrfs
-from sphere_jax.eval.neighbourhood import radius_neighbourhoods
+from sphere_jax.features import lrfs
+from sphere_jax.features.neighbourhood import radius_neighbourhoods
 from tests import reference
 from tests.eval import _fixtures
 

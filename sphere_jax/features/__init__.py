@@ -1,0 +1,12 @@
+"""Local features by name: hand-crafted descriptors (SHOT, FPFH, Spin Images, USC) and LRFs
+(SHOT, TOLDI, 3DSN, FLARE) on exact radius neighbourhoods, the learned ones from the shipped
+bundles, and the pair vote's two descriptors.
+
+================  ============================================================================
+``neighbourhood``  exact radius neighbourhoods as ragged arrays
+``descriptors``    SHOT, Spin Images, USC (numpy), FPFH (open3d)
+``lrfs``           SHOT, TOLDI and 3DSN frames
+``methods``        every descriptor and LRF by the name tables and configs use
+``voted``          ``lead_vote`` and ``shot_vote`` for :mod:`sphere_jax.registration.vote`
+================  ============================================================================
+"""
