@@ -56,7 +56,7 @@ def base(size: str) -> ml_collections.ConfigDict:
                                          # (sphere_jax/data/evaluation_scenes.py)
     ))
     # Patches per jitted inference call (api.Bundle.orient/describe); memory grows with it and
-    # with the chunks run at a time (api.run_chunked).
+    # with the chunks run at a time (parallel.run_chunked).
     c.infer_chunk = 256
     c.train = ml_collections.ConfigDict(dict(
         steps=50_000, batch_size=8, learning_rate=1e-3,

@@ -11,8 +11,6 @@ stays bounded for any number of keypoints.
 """
 from __future__ import annotations
 
-import collections
-import concurrent.futures
 import dataclasses
 import functools
 import os
@@ -21,20 +19,17 @@ import jax
 import jax.numpy as jnp
 import ml_collections
 import numpy as np
-from sklearn.neighbors import KDTree
 
 from sphere_jax import bundle as bundle_files
 from sphere_jax import checks
-from sphere_jax import models, parallel, paths
+from sphere_jax import models, paths
 from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
+from sphere_jax.data.supports import MIN_SUPPORT, SupportStream, extract_unit_patches
+from sphere_jax.parallel import DEFAULT_CHUNK, run_chunked, stream_chunked
 from sphere_jax.models import flare
 
 FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
-DEFAULT_CHUNK = 256         # patches per call when neither the caller nor the bundle says
-# Fewest support points a keypoint needs: below it the N points of a patch are drawn from a
-# handful (one neighbour gave N copies of one point) and no frame or descriptor means anything.
-MIN_SUPPORT = 16
 
 
 @dataclasses.dataclass
@@ -174,147 +169,6 @@ class Bundle:
 
 
 ON_INVALID = ("raise", "mask")
-
-
-class SupportStream:
-    """The supports of ``K`` keypoints (indices into ``points`` or coordinates, which are
-    queried, not added to the cloud), counted at once and drawn chunk by chunk: memory is that
-    of one chunk's neighbour lists, whatever K. Only the keypoints with at least
-    ``min_support`` points (the centre excluded) are drawn: ``rows`` of them, ``n`` in all.
-    :meth:`make` must be called on consecutive row ranges in order (the patch sampling is one
-    random stream, so the chunking does not change the patches)."""
-
-    def __init__(self, points, keypoints, radius, n_points, seed, min_support):
-        self.points = checks.cloud(points)
-        idx, coords = checks.keypoints(keypoints, len(self.points))
-        self.centres = self.points[idx] if coords is None else coords
-        self.radius, self.n_points, self.min_support = radius, n_points, min_support
-        self.tree = KDTree(self.points)
-        if len(self.centres):
-            # Points at the centre give no direction: they are not support.
-            self.counts = (self.tree.query_radius(self.centres, radius, count_only=True)
-                           - self.tree.query_radius(self.centres, 0.0, count_only=True))
-        else:
-            self.counts = np.zeros(0, np.int64)
-        self.valid = self.counts >= min_support
-        self.rows = np.flatnonzero(self.valid)
-        self.k, self.n = len(self.centres), len(self.rows)
-        self.frames = None
-        self._rng = np.random.default_rng(seed)
-
-    def check(self, on_invalid):
-        if on_invalid == "raise" and not self.valid.all():
-            first = int(np.argmin(self.valid))
-            raise checks.InputError(
-                "keypoints", f"supports (radius={self.radius:g}) of at least {self.min_support} "
-                f"points", f"{self.k - self.n} of {self.k} with fewer (the first, keypoint "
-                f"{first}, has {int(self.counts[first])}); pass on_invalid='mask' to get a "
-                f"valid mask instead", verb="have")
-
-    def make(self, start, stop):
-        """Inputs of rows ``start:stop``: unit patches ``[k, N, 3]`` (and frames)."""
-        rows = self.rows[start:stop]
-        got = patch_lib.patches_around(self.points, self.centres[rows], self.radius,
-                                       self.n_points, self._rng, 1, self.tree)
-        unit = got.points / np.float32(self.radius)
-        return (unit,) if self.frames is None else (unit, self.frames[rows])
-
-    def scatter(self, values, row_shape, on_invalid):
-        """The ``n`` computed rows back at their keypoints, NaN at the invalid ones."""
-        values = np.asarray(values, np.float32)
-        if values.ndim == 1 and row_shape is not None:        # no row computed
-            values = values.reshape(0, *row_shape)
-        out = np.full((self.k, *values.shape[1:]), np.nan, np.float32)
-        out[self.rows] = values
-        return out if on_invalid == "raise" else (out, self.valid.copy())
-
-
-def run_chunked(fn, x, chunk=None, workers=None):
-    """``fn`` over the rows of ``x`` in chunks (:func:`stream_chunked`)."""
-    x = np.asarray(x)
-    return stream_chunked(fn, lambda a, b: (x[a:b],), len(x), chunk, workers)
-
-
-def stream_chunked(fn, make, n, chunk=None, workers=None):
-    """``fn(*make(a, b))`` over rows ``0..n`` in chunks of a fixed size (the last one padded),
-    so a jitted ``fn`` compiles once whatever ``n``; one thread prepares the next chunk's
-    inputs (in order) while ``workers`` chunks run (default :func:`default_workers`), so at
-    most ``workers + 1`` chunks exist at a time.
-
-    Concurrent chunks are what uses a multi-core CPU here: XLA runs the loops of the fused
-    inference path (:mod:`~sphere_jax.spherical.fused`) on one thread, so one chunk at a time
-    keeps one core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
-    Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
-    """
-    chunk = checks.positive(DEFAULT_CHUNK if chunk is None else chunk, "chunk", integer=True)
-    workers = checks.positive(default_workers() if workers is None else workers, "workers",
-                              integer=True)
-    if n == 0:
-        return np.zeros((0,))
-    rows_on = chunk_sharding()
-    if rows_on is not None:                  # every device takes an equal block of each chunk
-        chunk = -(-chunk // rows_on.mesh.size) * rows_on.mesh.size
-    starts = list(range(0, n, chunk))
-
-    def prepare(a):
-        parts = make(a, min(a + chunk, n))
-        rows = len(parts[0])
-        pad = chunk - rows
-        if pad:
-            parts = tuple(np.concatenate([p, np.repeat(p[-1:], pad, 0)]) for p in parts)
-        return parts, rows
-
-    def compute(parts, rows):
-        put = jnp.asarray if rows_on is None else lambda p: jax.device_put(p, rows_on)
-        return np.asarray(fn(*(put(p) for p in parts)))[:rows]
-
-    out, running = [], collections.deque()
-    workers = min(len(starts), workers)
-    with concurrent.futures.ThreadPoolExecutor(1) as prep, \
-            concurrent.futures.ThreadPoolExecutor(workers) as pool:
-        ahead = prep.submit(prepare, starts[0])
-        for j in range(len(starts)):
-            parts, rows = ahead.result()
-            if j + 1 < len(starts):
-                ahead = prep.submit(prepare, starts[j + 1])
-            running.append(pool.submit(compute, parts, rows))
-            if len(running) >= workers:
-                out.append(running.popleft().result())
-        out.extend(f.result() for f in running)
-    return np.concatenate(out)
-
-
-def chunk_sharding():
-    """With more than one local device (GPUs, TPU cores, or CPU host devices forced by
-    ``XLA_FLAGS``): chunks split on their first axis across all of them, so the jitted
-    network runs on every device at once (one SPMD program, :mod:`sphere_jax.parallel`'s
-    axis); None with one device. Only this process's devices: in a multi-process run each
-    process describes its own scans."""
-    devices = jax.local_devices()
-    if len(devices) < 2:
-        return None
-    return jax.sharding.NamedSharding(jax.sharding.Mesh(np.array(devices), (parallel.AXIS,)),
-                                      jax.sharding.PartitionSpec(parallel.AXIS))
-
-
-def default_workers() -> int:
-    """Chunks run at a time by :func:`run_chunked`: on a CPU backend one per core this process
-    may use, at most 4 (each holds its chunk's intermediates: about 0.7 GB for LEAD 'paper' at
-    256 patches); on an accelerator 1, since its own parallelism runs each chunk already."""
-    if jax.default_backend() != "cpu":
-        return 1
-    return max(1, min(4, len(os.sched_getaffinity(0))))
-
-
-def extract_unit_patches(points, keypoints, radius, n_points, seed=0, min_support=1):
-    """All patches ``[K, n_points, 3]`` at once, in units of ``radius``, around ``keypoints``
-    (indices ``[K]`` or coordinates ``[K, 3]``); every keypoint must have ``min_support``
-    support points."""
-    stream = SupportStream(points, keypoints, checks.positive(radius, "radius"),
-                           checks.positive(n_points, "n_points", integer=True), seed,
-                           min_support)
-    stream.check("raise")
-    return stream.make(0, stream.n)[0]
 
 
 def open3d_feature(desc_KxD):

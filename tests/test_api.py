@@ -3,13 +3,12 @@
 import json
 import os
 
-import jax
 import numpy as np
 import pytest
 
 from configs import lead, sound
 import sphere_jax
-from sphere_jax import api, models, paths, training
+from sphere_jax import api, models, parallel, paths, training
 from tests import reference
 
 
@@ -19,7 +18,7 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
     variables = reference.init(model, x * 0.3)
     state = {"params": variables["params"], "batch_stats": variables["batch_stats"]}
-    training.save_bundle(str(tmp_path), config, state)
+    training.checkpoints.save_bundle(str(tmp_path), config, state)
     bundle = api.load_bundle(tmp_path / "bundle")
     cloud = np.random.default_rng(1).uniform(-1, 1, (3000, 3)).astype(np.float32)
     kp = np.arange(7)
@@ -52,14 +51,14 @@ def test_run_chunked_order_padding_and_workers():
     x = np.arange(10, dtype=np.float32)[:, None]
     for workers in (1, 2, 4):
         calls.clear()
-        out = api.run_chunked(fn, x, 4, workers)
+        out = parallel.run_chunked(fn, x, 4, workers)
         assert np.array_equal(out, x * 2) and calls == [4, 4, 4]     # padded to one shape
-    assert api.run_chunked(fn, x[:0], 4).shape == (0,)
-    assert api.default_workers() >= 1
+    assert parallel.run_chunked(fn, x[:0], 4).shape == (0,)
+    assert parallel.default_workers() >= 1
     with pytest.raises(ValueError, match="workers must be a positive integer; got 0"):
-        api.run_chunked(fn, x, 4, workers=0)
+        parallel.run_chunked(fn, x, 4, workers=0)
     with pytest.raises(ValueError, match="chunk must be a positive integer; got 0"):
-        api.run_chunked(fn, x, 0)
+        parallel.run_chunked(fn, x, 0)
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +69,7 @@ def sound_bundle(tmp_path_factory):
     model = models.build(config)
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
     variables = reference.init(model, x * 0.3)
-    training.save_bundle(str(root), config, {"params": variables["params"],
+    training.checkpoints.save_bundle(str(root), config, {"params": variables["params"],
                                              "batch_stats": variables["batch_stats"]})
     return root / "bundle"
 
@@ -230,9 +229,9 @@ def test_open3d_clouds_in_and_features_out_for_open3d_ransac():
 
 SHARDED_CHILD = """
 import sys, numpy as np, jax
-from sphere_jax import api
+from sphere_jax import api, parallel
 from sphere_jax.data import demo, patches
-assert api.chunk_sharding().mesh.size == jax.local_device_count() == 2
+assert parallel.chunk_sharding().mesh.size == jax.local_device_count() == 2
 (src, _), _ = demo.fragment_pair()
 kp = patches.random_keypoints(src, 150, np.random.default_rng(0))
 np.savez(sys.argv[1], compass=api.load_bundle('compass').orient(src, kp, chunk=25),
@@ -252,7 +251,7 @@ def test_chunks_split_over_two_host_devices_give_the_same_results(tmp_path):
                          capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-2000:]
     two = np.load(out)
-    assert api.chunk_sharding() is None                       # this process: one device
+    assert parallel.chunk_sharding() is None                       # this process: one device
     (src, _), _ = demo.fragment_pair()
     kp = patches.random_keypoints(src, 150, np.random.default_rng(0))
     np.testing.assert_allclose(two["compass"], api.load_bundle("compass").orient(src, kp),

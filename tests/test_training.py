@@ -245,7 +245,7 @@ def test_first_non_finite_loss_stops_keeping_the_last_good_checkpoint(small_root
         loss, (metrics, stats) = good(*args, **kwargs)
         return loss * np.nan, (dict(metrics, loss=loss * np.nan), stats)
 
-    monkeypatch.setattr(training, "loss_fn", nan_loss)
+    monkeypatch.setattr(training.loop, "loss_fn", nan_loss)
     with pytest.raises(training.TrainingError, match="step 3: the loss is nan .* The "
                                                      "checkpoint of step 2 is kept; no bundle"):
         training.train_and_evaluate(tiny("lead", small_root, steps=4), workdir, progress=False)
@@ -277,12 +277,12 @@ def test_unrestorable_newest_checkpoint_falls_back_to_the_one_before(small_root,
 def test_workdir_of_another_model_is_refused(small_root, tmp_path):
     workdir = str(tmp_path / "run")
     training.train_and_evaluate(tiny("lead", small_root, steps=2), workdir, progress=False)
-    with pytest.raises(training.checks.ConfigError, match="holds the checkpoints of model "
+    with pytest.raises(checks.ConfigError, match="holds the checkpoints of model "
                                                           "lead .* this config trains compass"):
         training.train_and_evaluate(tiny("compass", small_root, steps=2), workdir,
                                     progress=False)
     os.remove(os.path.join(workdir, training.WORKDIR_CONFIG))    # a run from before the record
-    with pytest.raises(training.checks.ConfigError, match="checkpoints of another model than "
+    with pytest.raises(checks.ConfigError, match="checkpoints of another model than "
                                                           "this config's compass"):
         training.train_and_evaluate(tiny("compass", small_root, steps=2), workdir,
                                     progress=False)

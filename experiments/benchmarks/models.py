@@ -4,7 +4,7 @@ LEAD/SOUND description time per keypoint for 5000 keypoints of the 3DMatch kitch
 (when the real scans are present), with the fused inference path of
 :mod:`sphere_jax.spherical.fused` (the default) and layer by layer (``unfused``), with
 ``describe_workers`` chunks of the config's ``infer_chunk`` keypoints run at a time
-(:func:`sphere_jax.api.run_chunked`). ``--only=lead`` keeps the configs whose name contains it."""
+(:func:`sphere_jax.parallel.run_chunked`). ``--only=lead`` keeps the configs whose name contains it."""
 from __future__ import annotations
 
 import importlib
@@ -17,7 +17,7 @@ import jax
 import numpy as np
 
 from experiments.benchmarks import common
-from sphere_jax import api, models, paths
+from sphere_jax import api, models, parallel, paths
 from sphere_jax.data import patches
 from sphere_jax.data.readers import io
 
@@ -54,7 +54,7 @@ def run(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None, **_):
                     t0 = time.perf_counter()
                     bundle.describe(down, kp, radius=0.3)
                     rec[key] = round(1e3 * (time.perf_counter() - t0) / len(kp), 3)
-                rec["describe_workers"] = api.default_workers()     # chunks run at a time
+                rec["describe_workers"] = parallel.default_workers()     # chunks run at a time
             records.append(rec)
             print(json.dumps(rec), file=sys.stderr, flush=True)     # partial results survive
     return records

@@ -4,7 +4,7 @@ else a synthetic fragment:
 - timing: 5000 patches of 1225 points (radius 0.3 m) from the fragment voxelised at 2 cm
   (keypoint selection and extraction), then their spherical signals;
 - memory: the supports of K keypoints on the **full-resolution** fragment drawn as the
-  inference API does (:class:`sphere_jax.api.SupportStream`, chunks of 256 patches of 1024
+  inference API does (:class:`sphere_jax.data.supports.SupportStream`, chunks of 256 patches of 1024
   points streamed, one prepared ahead) against all at once (what extraction did before),
   each K in a fresh process, peak RSS from the kernel; and the whole ``describe`` call of the
   shipped LEAD at the largest K (``--keypoints``).
@@ -56,8 +56,8 @@ def run(repeats=5, keypoints=5000, **_):
 
 def _memory_child(k, mode):
     """In a fresh process: peak RSS (MB) and seconds of drawing K supports."""
-    from sphere_jax import api
-    from sphere_jax.data import patches
+    from sphere_jax import api, parallel
+    from sphere_jax.data import patches, supports
     _, points = _fragment()
     rng = np.random.default_rng(0)
     kp = np.sort(rng.choice(len(points), k, replace=k > len(points)))
@@ -65,9 +65,9 @@ def _memory_child(k, mode):
     if mode == "LEAD describe":                           # the whole API call, shipped LEAD
         api.load_bundle("lead").describe(points, kp, on_invalid="mask")
     elif mode == "streamed":
-        stream = api.SupportStream(points, kp, RADIUS, N_POINTS, 0, api.MIN_SUPPORT)
+        stream = supports.SupportStream(points, kp, RADIUS, N_POINTS, 0, supports.MIN_SUPPORT)
         # A stand-in network: the first point of each patch (the supports are what is measured).
-        api.stream_chunked(lambda p: p[:, 0], stream.make, stream.n, CHUNK, workers=2)
+        parallel.stream_chunked(lambda p: p[:, 0], stream.make, stream.n, CHUNK, workers=2)
     else:
         patches.extract_patches(points, kp, RADIUS, N_POINTS, rng)
     seconds = time.perf_counter() - t0

@@ -35,7 +35,8 @@ from typing import Callable
 
 import numpy as np
 
-from sphere_jax import api
+from sphere_jax import api, parallel
+from sphere_jax.data import supports
 from sphere_jax.features import descriptors, lrfs
 from sphere_jax.features.neighbourhood import radius_neighbourhoods
 from sphere_jax.registration.fragments import Fragment
@@ -160,8 +161,8 @@ def lrf(name, radius, bundles=None, chunk=None):
         raise ValueError(f"unknown LRF {name!r}; choose from {', '.join(LRFS)}")
     if name == "flare":
         def orient(f, idx):
-            p = api.extract_unit_patches(f.points, idx, radius, FLARE_POINTS)
-            return api.run_chunked(api.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
+            p = supports.extract_unit_patches(f.points, idx, radius, FLARE_POINTS)
+            return parallel.run_chunked(api.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
         return orient
     if name == "shot":
         return lambda f, idx: lrfs.shot_lrf(neighbourhoods(f, idx, radius))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from sphere_jax import api
+from sphere_jax import api, parallel
 from sphere_jax.features import descriptors, lrfs
 from sphere_jax.features import methods as method_lib
 from sphere_jax.models import lead as lead_model
@@ -40,8 +40,8 @@ def _lead_vote(radius, bundles, chunk):
     def turned(maps_KxD, frames_Kx3x3):
         side = round(maps_KxD.shape[1] ** (1 / 3))
         cubes = maps_KxD.reshape(len(maps_KxD), side, side, side)
-        return api.stream_chunked(turn, lambda a, b: (cubes[a:b], frames_Kx3x3[a:b]),
-                                  len(cubes), chunk)
+        return parallel.stream_chunked(turn, lambda a, b: (cubes[a:b], frames_Kx3x3[a:b]),
+                                       len(cubes), chunk)
 
     def first(f):
         k = len(f.keypoints)

@@ -1,0 +1,51 @@
+"""The training data of a config: its source of patches or shapes, and the batch of a step."""
+from __future__ import annotations
+
+import os
+
+from sphere_jax import api, bundle, models
+from sphere_jax.data import evaluation_scenes, pipeline
+from sphere_jax.data.generators import synthetic
+
+
+def build_source(config):
+    """The data of ``config.data``: a :class:`~sphere_jax.data.pipeline.PatchSource` of the
+    training scans (refused where they hold an evaluation scene, unless
+    ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.pipeline.ShapeSource`."""
+    d = config.data
+    if models.spec(config.model).labelled or d.get("shapes", False):
+        root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
+        return pipeline.ShapeSource(root, d.n_points, config.seed,
+                                    d.get("holdout_every", 0))
+    allow = bool(d.get("allow_evaluation_scenes", False))
+    # The entries first (before an RGB-D sequence is fused), then every scan and its origin.
+    evaluation_scenes.check_training_scans(
+        [pipeline.entry_path(e) for e in pipeline.root_entries(d.root)], allow)
+    groups = pipeline.scan_groups(d.root)
+    scans = [p for g in groups for p in g]
+    evaluation_scenes.check_training_scans(
+        scans + [pipeline.scan_folder_label(p) for p in scans], allow)
+    return pipeline.PatchSource([p for g in groups for p in g], d.voxel, d.keypoint_leaf,
+                                d.radius, d.n_points, d.min_points, d.val_fraction, config.seed,
+                                groups=[k for k, g in enumerate(groups) for _ in g],
+                                weights=pipeline.parse_weights(d.get("root_weights", ""),
+                                                               len(groups)))
+
+
+def get_batch(config, source, step, split="train"):
+    """Batch ``step`` of ``split`` (a function of the seed and the step alone: resumed and
+    continued runs draw what the uninterrupted run would have)."""
+    spec, bs = models.spec(config.model), config.train.batch_size
+    if not isinstance(source, pipeline.ShapeSource):
+        return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
+                            copy_draw=config.data.get("copy_draw", bundle.DATA_ADDED["copy_draw"]),
+                            copy_jitter=config.data.get("copy_jitter", bundle.DATA_ADDED["copy_jitter"]))
+    split = "test" if split == "val" else split
+    if not spec.labelled:                                       # Compass on whole shapes
+        return source.batch(step, bs, split, copies=spec.copies,
+                            occlusion=config.data.occlusion)
+    batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
+    if config.get("orient_bundle"):
+        batch["points"] = api.orient_shapes(api.cached_bundle(config.orient_bundle),
+                                            batch["points"])
+    return batch
