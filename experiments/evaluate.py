@@ -32,6 +32,8 @@ flags.DEFINE_bool("distributed", False, "join a multi-process run found by JAX (
 flags.DEFINE_string("coordinator", None, "multi-process run: HOST:PORT of process 0")
 flags.DEFINE_integer("num_processes", None, "multi-process run: number of processes")
 flags.DEFINE_integer("process_id", None, "multi-process run: this process's index")
+flags.DEFINE_float("peer_timeout_s", 60.0, "multi-process run: stop when another process has "
+                   "been silent this long (rerun the same command to resume)")
 
 
 def main(_):
@@ -45,7 +47,7 @@ def main(_):
     f = flags.FLAGS
     if f.distributed or f.coordinator or f.num_processes is not None:
         from sphere_jax import parallel
-        parallel.initialize(f.coordinator, f.num_processes, f.process_id)
+        parallel.initialize(f.coordinator, f.num_processes, f.process_id, f.peer_timeout_s)
     start = time.perf_counter()
     command = cli.command("experiments.evaluate")
     _, md = tasks.run(config, workdir, command=command)

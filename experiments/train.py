@@ -10,7 +10,8 @@ A CPU host is given ``--host_devices`` devices (default 2), which the data-paral
 side by side: XLA runs the loops of the spectral-domain path on one thread per device.
 Several hosts: start the same command on each with ``--coordinator=HOST:PORT
 --num_processes=N --process_id=I`` (or ``--distributed`` under Slurm, Open MPI or on a TPU
-pod, where JAX finds them itself).
+pod, where JAX finds them itself). A process that dies stops the others within
+``--peer_timeout_s`` (exit status 75, naming it); the same command resumes.
 """
 from __future__ import annotations
 
@@ -32,6 +33,8 @@ flags.DEFINE_bool("distributed", False, "join a multi-host run found by JAX (Slu
 flags.DEFINE_string("coordinator", None, "multi-host run: HOST:PORT of process 0")
 flags.DEFINE_integer("num_processes", None, "multi-host run: number of processes")
 flags.DEFINE_integer("process_id", None, "multi-host run: this process's index")
+flags.DEFINE_float("peer_timeout_s", 60.0, "multi-host run: stop when another process has been "
+                   "silent this long (rerun the same command to resume)")
 
 
 def _set_host_devices(n: int):
@@ -52,7 +55,7 @@ def main(_):
     _set_host_devices(f.host_devices)
     from sphere_jax import parallel, training       # after XLA_FLAGS: nothing of JAX ran yet
     if f.distributed or f.coordinator or f.num_processes is not None:
-        parallel.initialize(f.coordinator, f.num_processes, f.process_id)
+        parallel.initialize(f.coordinator, f.num_processes, f.process_id, f.peer_timeout_s)
     workdir = f.workdir or os.path.join("runs", f"{config.model}_{config.size}")
     command = cli.command("experiments.train")
     _, last = training.train_and_evaluate(config, workdir, command=command)

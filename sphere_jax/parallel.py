@@ -16,9 +16,13 @@ Inference runs a jitted function over many rows in fixed-size chunks (:func:`run
 """
 from __future__ import annotations
 
+import atexit
 import collections
 import concurrent.futures
 import os
+import sys
+import threading
+import time
 
 import jax
 import jax.numpy as jnp
@@ -29,18 +33,123 @@ from sphere_jax import checks
 
 AXIS = "batch"
 DEFAULT_CHUNK = 256         # patches per call when neither the caller nor the bundle says
+PEER_TIMEOUT_S = 60.0       # a silent peer of a multi-process run is given up after this
+PEER_LOST_EXIT = 75         # exit status then (EX_TEMPFAIL: run the same command again)
 
 
 def initialize(coordinator: str | None = None, num_processes: int | None = None,
-               process_id: int | None = None):
+               process_id: int | None = None, peer_timeout_s: float = PEER_TIMEOUT_S):
     """Join a multi-host run. With no arguments JAX detects Slurm, Open MPI and Cloud TPU
-    launches itself; otherwise all three are needed (as for ``jax.distributed.initialize``)."""
+    launches itself; otherwise all three are needed (as for ``jax.distributed.initialize``).
+
+    A process that dies (OOM-killed, preempted) stops the others within ``peer_timeout_s``
+    seconds, each with one last line naming the lost process (:class:`PeerWatch`), instead of
+    JAX's abort dump; the same command then resumes from the last checkpoint."""
     given = [a is not None for a in (coordinator, num_processes, process_id)]
     if any(given) and not all(given):
         raise ValueError("coordinator, num_processes and process_id go together: give all "
                          "three or none (auto-detection on Slurm, Open MPI or TPU)")
+    peer_timeout_s = checks.positive(peer_timeout_s, "peer_timeout_s")
+    # JAX's own heartbeat aborts the process with a C++ fatal error: let the watch, which
+    # can say what happened, come first.
     jax.distributed.initialize(coordinator_address=coordinator, num_processes=num_processes,
-                               process_id=process_id)
+                               process_id=process_id,
+                               heartbeat_timeout_seconds=int(max(100, 4 * peer_timeout_s)))
+    if jax.process_count() > 1:
+        PeerWatch(peer_timeout_s).start()
+
+
+class PeerWatch(threading.Thread):
+    """Every process of a ``jax.distributed`` run counts up its own key in the coordination
+    service's key-value store every ``timeout_s / 10`` seconds and reads the others'. A peer
+    whose count has not moved for ``timeout_s`` seconds — or a coordinator that no longer
+    answers — ends this process with exit status :data:`PEER_LOST_EXIT` and one line naming
+    the lost process. A process that ends normally says so first (``atexit``), so the others
+    do not mistake it for a lost one. Blocked collectives do not stop the watch: it is a
+    thread of its own, and XLA releases the GIL while it runs.
+
+    A dead peer usually surfaces first as an error in this process's main thread (a
+    collective's connection reset): :meth:`start` hooks ``sys.excepthook`` so that, after the
+    traceback, the process waits for the watch's verdict instead of running JAX's shutdown
+    barrier, which would wait for the dead peer and then abort."""
+
+    def __init__(self, timeout_s: float, client=None, me: int | None = None,
+                 processes: int | None = None, exit_fn=None):
+        super().__init__(name="sphere_jax-peer-watch", daemon=True)
+        from jax._src import distributed
+        self.client = client or distributed.global_state.client
+        self.me = jax.process_index() if me is None else me
+        self.n = jax.process_count() if processes is None else processes
+        self.timeout_s, self.interval_s = float(timeout_s), max(0.2, float(timeout_s) / 10)
+        self.exit_fn = exit_fn or os._exit
+        self.stopped, self.stopped_by_peer = threading.Event(), threading.Event()
+        atexit.register(self.finish)
+
+    def start(self):
+        previous = sys.excepthook
+
+        def excepthook(kind, value, tb):
+            previous(kind, value, tb)
+            if not issubclass(kind, KeyboardInterrupt) and not self.stopped.is_set():
+                self.stopped_by_peer.wait(self.timeout_s + 3 * self.interval_s)
+
+        sys.excepthook = excepthook
+        super().start()
+
+    def _key(self, what, p):
+        return f"sphere_jax/peer_watch/{what}/{p}"
+
+    def _get(self, what, p):
+        """A peer's value, None while it has not written one."""
+        try:
+            return self.client.key_value_try_get(self._key(what, p))
+        except Exception as e:               # noqa: BLE001 - JAX raises NOT_FOUND for a new key
+            if "NOT_FOUND" in str(e):
+                return None
+            raise
+
+    def finish(self):
+        """This process ends normally: stop beating and tell the others."""
+        if not self.stopped.is_set():
+            self.stopped.set()
+            try:
+                self.client.key_value_set(self._key("done", self.me), "1", allow_overwrite=True)
+            except Exception:               # the coordinator has gone already: nothing to tell
+                pass
+
+    def run(self):
+        count, seen = 0, {}
+        while not self.stopped.wait(self.interval_s if count else 0):
+            count += 1
+            now = time.monotonic()
+            try:
+                self.client.key_value_set(self._key("alive", self.me), str(count),
+                                          allow_overwrite=True)
+                for p in range(self.n):
+                    if p == self.me or self._get("done", p):
+                        continue
+                    beat = self._get("alive", p)
+                    if p not in seen or seen[p][0] != beat:
+                        seen[p] = (beat, now)
+                    elif now - seen[p][1] > self.timeout_s:
+                        return self._lost(f"process {p} of {self.n} stopped answering "
+                                          f"{now - seen[p][1]:.0f} s ago (killed, preempted "
+                                          f"or out of memory)")
+            except Exception as e:               # noqa: BLE001 - any RPC failure means the same
+                if self.stopped.is_set():
+                    return
+                return self._lost(f"the coordinator (process 0 of {self.n}) no longer answers "
+                                  f"({type(e).__name__})")
+
+    def _lost(self, what):
+        if self.stopped.is_set():
+            return
+        sys.stderr.write(f"\nsphere_jax: {what}; process {self.me} stops here. Run the same "
+                         f"command again on every process to resume from the last checkpoint "
+                         f"(finished scenes of an evaluation are kept).\n")
+        sys.stderr.flush()
+        self.stopped_by_peer.set()
+        self.exit_fn(PEER_LOST_EXIT)
 
 
 def make_mesh(devices_per_host: int | None = None) -> Mesh:

@@ -1,10 +1,12 @@
 """Data-parallel training over a mesh of host devices (two CPU devices, forced through
 XLA_FLAGS in child processes: the device count is fixed when JAX starts)."""
+import json
 import os
 import shutil
 import socket
 import subprocess
 import sys
+import time
 
 import jax
 import numpy as np
@@ -32,7 +34,7 @@ def _frame_parameters(params):
 
 
 def child_main():
-    """In the child: ROOT WORKDIR DEVICES STEPS [COORDINATOR PROCESSES ID] ->
+    """In the child: ROOT WORKDIR DEVICES STEPS [COORDINATOR PROCESSES ID [PEER_TIMEOUT_S]] ->
     WORKDIR/params.npy (in a multi-host run, WORKDIR/params_ID.npy)."""
     import pathlib
     from sphere_jax import training
@@ -40,7 +42,8 @@ def child_main():
     out = "params.npy"
     if len(sys.argv) > 5:
         coordinator, processes, pid = sys.argv[5:8]
-        parallel.initialize(coordinator, int(processes), int(pid))
+        timeout = float(sys.argv[8]) if len(sys.argv) > 8 else parallel.PEER_TIMEOUT_S
+        parallel.initialize(coordinator, int(processes), int(pid), timeout)
         out = f"params_{pid}.npy"
     c = tiny("compass", pathlib.Path(root), steps=int(steps), checkpoint_every=2,
              eval_every=100, log_every=1)
@@ -96,6 +99,46 @@ def test_two_hosts_equal_one_host_with_two_devices(small_root_parallel, two_devi
         loaded = api.load_bundle(run / "bundle")
         assert np.isfinite(_frame_parameters(loaded.variables["params"])).all()
     assert len((tmp_path / "hosts" / "metrics.jsonl").read_text().splitlines()) == 4
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def test_a_killed_host_stops_the_other_and_the_same_command_resumes(small_root_parallel,
+                                                                    tmp_path):
+    """kill -9 of one of two processes: the survivor stops within the peer timeout (not by
+    JAX's abort), its last line naming the lost process; the same command on both then
+    resumes from the last checkpoint and finishes."""
+    work, steps, timeout = tmp_path / "hosts", 60, 10
+    start = lambda port: [_child(small_root_parallel, work, 1, steps, f"localhost:{port}", 2,
+                                 i, timeout, host_devices=1) for i in range(2)]
+    hosts = start(_free_port())
+    deadline = time.monotonic() + 300
+    while not (work / "checkpoints" / "4").is_dir():
+        assert time.monotonic() < deadline and all(h.poll() is None for h in hosts), \
+            hosts[0].stderr.read()[-3000:] if hosts[0].poll() is not None else "no checkpoint"
+        time.sleep(0.2)
+    hosts[1].kill()
+    killed = time.monotonic()
+    _, err = hosts[0].communicate(timeout=180)
+    took = time.monotonic() - killed
+    hosts[1].communicate()
+    print(f"survivor stopped {took:.1f} s after the kill")
+    assert hosts[0].returncode == parallel.PEER_LOST_EXIT, err[-3000:]
+    assert took < timeout + 20
+    last = err.strip().splitlines()[-1]
+    assert "process 1 of 2 stopped answering" in last and "same command again" in last, last
+    again = start(_free_port())
+    for proc in again:
+        _, err = proc.communicate(timeout=600)
+        assert proc.returncode == 0, err[-3000:]
+    logged = [json.loads(line)["step"] for line in
+              (work / "metrics.jsonl").read_text().splitlines()]
+    assert logged == list(range(1, steps + 1))            # resumed, each step logged once
+    assert (work / "bundle" / "config.json").is_file()
 
 
 def _rel(a, b):

@@ -16,7 +16,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from sphere_jax import api, models, training
-from sphere_jax.eval import processes, report, tasks
+from sphere_jax.eval import processes, report, resume, tasks
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.features import methods as method_lib
 from sphere_jax.spherical import so3
@@ -83,13 +83,22 @@ class LrfResult:
 
 def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
                    prepare_kwargs=None, match_dist=0.02, rho=RHO, seed=0, progress=True,
-                   fragments=None) -> list[LrfResult]:
+                   fragments=None, finished=None) -> list[LrfResult]:
     """Every LRF method of ``orienters`` (name -> ``orient(fragment, indices)``) on every pair
-    of ``pair_set``; ``fragments`` (key -> :class:`Fragment`) skips the preparation."""
-    frags = fragments or scene_lib.prepare_all(pair_set, seed, progress,
-                                               **(prepare_kwargs or {}))
+    of ``pair_set``; ``fragments`` (key -> :class:`Fragment`, or a function giving them)
+    skips the preparation. ``finished`` (:class:`~sphere_jax.eval.resume.Finished`): results
+    an interrupted run kept are taken from it, and each new one is kept there as it ends."""
+    kept = {name: finished.get(name, pair_set.name) if finished else None
+            for name in orienters}
+    frags = None
     results = []
     for name, orient in orienters.items():
+        if kept[name] is not None:
+            results.append(kept[name])
+            continue
+        if frags is None:
+            frags = fragments() if callable(fragments) else fragments or scene_lib.prepare_all(
+                pair_set, seed, progress, **(prepare_kwargs or {}))
         cached = FrameCache(orient)
         rows = [dict(pair=(i, j), **pair_repeatability(cached, frags[i], frags[j], t,
                                                         match_dist, rho))
@@ -100,6 +109,8 @@ def evaluate_scene(pair_set: scene_lib.PairSet, orienters: dict[str, Callable],
         results.append(LrfResult(name, pair_set.name, rows,
                                  {"pairs": len(valid), "rep": mean("rep"),
                                   "mean_angle_deg": mean("mean_angle_deg")}))
+        if finished is not None:
+            finished.put(results[-1])
     return results
 
 
@@ -137,12 +148,20 @@ def run(config, workdir, progress=True):
     orienters = {m: method_lib.lrf(m, config.data.radius, bundles, config.chunk) for m in names}
     mine, plot_dir = [], os.path.join(workdir, "plots")
     os.makedirs(plot_dir, exist_ok=True)
+    finished = resume.Finished(workdir, config, bundles, primary=processes.is_writer())
     for k, s in processes.share(scene_lib.pair_sets(config)):
-        frags = scene_lib.prepare_all(s, config.seed, progress, **scene_lib.prepare_kwargs(config))
+        frags = {}
+
+        def prepare(s=s, frags=frags):        # only when a method is not finished yet
+            frags.update(scene_lib.prepare_all(s, config.seed, progress,
+                                               **scene_lib.prepare_kwargs(config)))
+            return frags
         scene_results = evaluate_scene(
             s, orienters, match_dist=config.match_dist, rho=config.rho, seed=config.seed,
-            progress=progress, fragments=frags)
+            progress=progress, fragments=prepare, finished=finished)
         for r in scene_results:
+            if not frags:                     # every result was kept: so were its plots
+                break
             for row in r.pairs[:config.plot_pairs]:
                 i, j = row["pair"]
                 report.plot_repeatability(

@@ -145,3 +145,34 @@ def test_a_killed_evaluation_redoes_only_what_it_had_not_finished(tmp_path, monk
     c.data.n_keypoints = 200                                 # another config: all again
     tasks.run(c, str(tmp_path / "cut"), progress=False)
     assert set(calls) == {"fpfh", "shot"}
+
+
+def test_a_killed_lrf_evaluation_redoes_only_what_it_had_not_finished(tmp_path, monkeypatch):
+    """The LRF benchmark resumes as the registration one does: the run dies in its second
+    method, the rerun orients with that method only and writes the same lrf_results.csv."""
+    c = eval_lrf.get_config("tiny")
+    c.methods = "shot,toldi"
+    tasks.run(c, str(tmp_path / "whole"), progress=False)
+    calls, real = [], methods.lrf
+
+    def counting(name, *args, **kwargs):
+        orient = real(name, *args, **kwargs)
+
+        def run(fragment, indices):
+            calls.append(name)
+            if name == "toldi" and die:
+                raise KeyboardInterrupt                      # the kill
+            return orient(fragment, indices)
+        return run
+
+    monkeypatch.setattr(methods, "lrf", counting)
+    die = True
+    with pytest.raises(KeyboardInterrupt):
+        tasks.run(c, str(tmp_path / "cut"), progress=False)
+    assert "shot" in calls
+    calls.clear()
+    die = False
+    tasks.run(c, str(tmp_path / "cut"), progress=False)
+    assert calls and calls[0] == "toldi"                     # shot's first scene was kept
+    assert _read_csv(tmp_path / "cut" / "lrf_results.csv") == \
+        _read_csv(tmp_path / "whole" / "lrf_results.csv")
