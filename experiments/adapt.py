@@ -1,30 +1,69 @@
-"""Test-time adaptation (thesis 3.2.1): fine-tune a Compass or SOUND bundle, self-supervised,
-on the scans it will be evaluated on.
+"""Adapt a bundle to your own scans, without labels: its own self-supervised loss (LEAD's and
+LEAD-PN's reconstruction, Compass's and SOUND's frame consistency) on your scans, for a number
+of minutes or steps, stopping early when the loss on held-back keypoints stops improving.
 
-    python -m experiments.adapt --bundle=compass --data=SCANS \\
-        --steps=200 --workdir=runs/compass_adapted
+    python -m experiments.adapt --bundle=lead --data=SCANS --minutes=10 --workdir=runs/lead_mine
 
-The adapted bundle is written to ``WORKDIR/bundle``; re-running resumes like training.
+``--data``: folders or scan files (PLY, PCD, XYZ, ...), comma-separated; no pose or ground
+truth is read. The scale is chosen from the scans as ``experiments.register`` chooses it
+(``--voxel``/``--radius`` to set it). The adapted bundle is written to ``WORKDIR/bundle``, its
+model card naming the scans; ``register --bundle=WORKDIR/bundle`` uses it, and re-running the
+same command resumes.
 """
 from __future__ import annotations
 
 import argparse
 
 from experiments import cli
-from sphere_jax import api, training
+from sphere_jax import align, api, checks, training
+from sphere_jax.data import pipeline
+from sphere_jax.data.readers import io
+from sphere_jax.training import adaptation
+
+SCALE_SCANS = 8          # scans read to choose the scale (the first ones, in file order)
+
+
+def auto_data(bundle, roots, voxel="auto", radius="auto"):
+    """``config.data`` overrides putting ``roots``' scans at the scale ``bundle`` was trained
+    at (:func:`sphere_jax.align.auto_scale`), keypoints as dense relative to the support."""
+    d = bundle.config.data
+    if "auto" in (voxel, radius):
+        scans = pipeline.scan_paths(roots)
+        if not scans:
+            raise checks.MissingError(f"--data={roots!r}: no scans found")
+        clouds = [io.read_points(p).points for p in scans[:SCALE_SCANS]]
+        auto_voxel, auto_radius = align.auto_scale(*clouds)
+        voxel = auto_voxel if voxel == "auto" else voxel
+        radius = auto_radius if radius == "auto" else radius
+    voxel, radius = checks.positive(float(voxel), "voxel"), checks.positive(float(radius),
+                                                                             "radius")
+    return dict(voxel=voxel, radius=radius, keypoint_leaf=d.keypoint_leaf * radius / d.radius)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--bundle", required=True)
-    parser.add_argument("--data", required=True, help="folder of scans to adapt to")
-    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--bundle", required=True, help="a bundle folder or a shipped kind")
+    parser.add_argument("--data", required=True, help="scan folders or files, comma-separated")
+    parser.add_argument("--minutes", type=float, default=None,
+                        help="wall-time budget (default 10 when --steps is not given)")
+    parser.add_argument("--steps", type=int, default=None)
+    parser.add_argument("--voxel", default="auto")
+    parser.add_argument("--radius", default="auto")
+    parser.add_argument("--patience", type=int, default=adaptation.PATIENCE,
+                        help="evaluations without improvement before stopping (0: never)")
     parser.add_argument("--learning_rate", type=float, default=None)
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
+    minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
     with cli.refusals():
-        path, last = training.adapt(api.load_bundle(args.bundle), args.data, args.steps,
-                                    args.workdir, args.learning_rate)
+        bundle = api.load_bundle(args.bundle)
+        data = auto_data(bundle, args.data, args.voxel, args.radius)
+        print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "
+              f"{data['radius']:.4g}" + (f", {minutes:g} min" if minutes else "")
+              + (f", at most {args.steps} steps" if args.steps else ""))
+        path, last = training.adapt(bundle, args.data, args.steps, args.workdir,
+                                    args.learning_rate, data=data, minutes=minutes,
+                                    patience=args.patience)
     print(f"adapted bundle in {path}: " + ", ".join(
         f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
 

@@ -87,12 +87,13 @@ def point_spacing(points_Nx3, samples=5000, seed=0) -> float:
     return float(np.median(d)) if len(d) else 0.0
 
 
-def auto_scale(source, target):
-    """``(voxel, radius)`` for two clouds (module docstring)."""
-    side = max(middle_side(source), middle_side(target))
-    voxel = max(side * TRAIN_VOXEL / FRAGMENT_SIDE, point_spacing(source), point_spacing(target))
+def auto_scale(*clouds):
+    """``(voxel, radius)`` for the clouds (``[N, 3]`` each) of one scene or sensor (module
+    docstring): the largest middle side decides, unless a cloud is sparser than that."""
+    side = max(middle_side(c) for c in clouds)
+    voxel = max([side * TRAIN_VOXEL / FRAGMENT_SIDE] + [point_spacing(c) for c in clouds])
     if not voxel > 0:
-        raise checks.InputError("source and target", "clouds with extent",
+        raise checks.InputError("the clouds", "clouds with extent",
                                 "clouds whose points coincide")
     return voxel, voxel * TRAIN_RADIUS / TRAIN_VOXEL
 

@@ -163,6 +163,23 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     assert 0 < moved < 5e-3
 
 
+def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path, capsys):
+    """An autoencoder adapts too: ``--minutes`` stops it (the first step's compilation alone
+    outlasts 1.2 s) and the scale is chosen from the scans and printed."""
+    from experiments import adapt
+    from sphere_jax import api, bundle
+    config = tiny("lead", small_root, steps=1)
+    training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
+    adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={config.data.root}",
+                "--minutes=0.02", "--steps=50", f"--workdir={tmp_path / 'adapted'}"])
+    printed = capsys.readouterr().out
+    assert "adapting lead on" in printed and "voxel" in printed and "0.02 min" in printed
+    adapted = api.load_bundle(tmp_path / "adapted" / "bundle")
+    assert 1 <= bundle.steps_done(adapted.config) < 50
+    assert adapted.config.data.voxel != config.data.voxel          # chosen from the scans
+    assert 0 < _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle")
+
+
 def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path, monkeypatch):
     """A bundle trained with copies from another scan (ground-truth poses) adapts on second
     draws of the support: the poses of the scans it adapts on are never read."""

@@ -4,12 +4,12 @@
 ``loop``         loss, schedule, optimiser, state, the jitted data-parallel steps, the loop
 ``inputs``       the config's data source and the batch of a step
 ``checkpoints``  orbax checkpoints, resume, the workdir's claim, the bundle at the end
-``adapt``        test-time adaptation of a bundle on unlabelled scans
+``adaptation``   a bundle adapted to unlabelled scans with its own loss
 ===============  ============================================================================
 
 Continuing a bundle at its step, or fine-tuning from its weights, is :mod:`sphere_jax.bundle`'s.
 """
-from sphere_jax.training.adapt import adapt
+from sphere_jax.training.adaptation import adapt
 from sphere_jax.training.checkpoints import WORKDIR_CONFIG
 from sphere_jax.training.inputs import build_source, get_batch
 from sphere_jax.training.loop import (TrainingError, init_state, learning_rate_schedule, loss_fn,

@@ -176,6 +176,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     does from the command line; ``train.init_bundle`` continues a bundle at its step. Returns
     the final state and the last metrics.
 
+    ``train.early_stop_patience`` > 0 ends it once the validation loss has not improved for
+    that many evaluations (:class:`Plateau`; adaptation uses it).
     ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
     minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
     bundle records the steps done, so the same command with a later budget resumes.
@@ -222,6 +224,7 @@ def _train(config, workdir, progress, init_variables, command):
     last = {}
     t_last, seen, wait_last = time.perf_counter(), 0, 0.0
     budget, t_start = float(config.train.get("time_budget_s", 0) or 0), t_last
+    plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0))
     bar = tqdm(total=config.train.steps, initial=start, disable=not (progress and main_host),
                desc=f"{config.model}:{config.get('size', '')}")
     make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
@@ -243,6 +246,7 @@ def _train(config, workdir, progress, init_variables, command):
                 t_last, seen, wait_last = now, 0, batches.wait_s
                 if done % config.train.eval_every == 0 or final:
                     last.update(evaluate(config, source, state, eval_step, mesh))
+                    final = plateau.reached(last["val_loss"]) or final
                 if main_host:
                     log.write(json.dumps(last) + "\n")
                     log.flush()
@@ -262,6 +266,21 @@ def _train(config, workdir, progress, init_variables, command):
     if main_host:
         model_card.write(path, metrics_path, command)
     return state, last
+
+
+class Plateau:
+    """Early stopping: :meth:`reached` is True once the validation loss has not improved on
+    its best for ``patience`` evaluations in a row (never with ``patience`` 0)."""
+
+    def __init__(self, patience: int):
+        self.patience, self.best, self.since = patience, float("inf"), 0
+
+    def reached(self, val_loss: float) -> bool:
+        if val_loss < self.best:
+            self.best, self.since = val_loss, 0
+        else:
+            self.since += 1
+        return bool(self.patience) and self.since >= self.patience
 
 
 def evaluate(config, source, state, eval_step, mesh):

@@ -1,0 +1,75 @@
+"""Adaptation without labels: a bundle fine-tuned on the user's own scans with its own
+self-supervised loss — Compass's and SOUND's frames (test-time adaptation, thesis 3.2.1), and
+the LEAD and LEAD-PN autoencoders' reconstruction. No pose and no ground truth is read: copies
+of a patch come from a second draw of its own support."""
+from __future__ import annotations
+
+import os
+
+import ml_collections
+
+from sphere_jax import checks, models
+from sphere_jax.training import loop
+
+# Without a step count, a time budget decides: the steps are capped by this.
+MAX_STEPS = 1_000_000
+# Evaluations (every EVAL_EVERY steps, on held-back keypoints of the scans) without a better
+# validation loss before an adaptation stops.
+PATIENCE, EVAL_EVERY = 3, 25
+
+
+def adaptable_kinds():
+    """The model kinds trained without labels, which can adapt to unlabelled scans."""
+    return [k for k, s in models.SPECS.items() if not s.labelled]
+
+
+def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True, data=None,
+          minutes=None, patience=PATIENCE):
+    """Fine-tune bundle ``trained`` (any kind of :func:`adaptable_kinds`) with its own loss on
+    the scans of ``data_root`` (folders or scan files, comma-separated, as ``data.root``) for
+    ``steps`` steps or ``minutes`` of wall time (either may be None, not both); the adapted
+    bundle is written to ``workdir/bundle`` (re-running resumes) and its model card lists the
+    scans, evaluation scenes among them included. ``data`` overrides ``config.data`` fields
+    for scans of another scale (voxel, radius, keypoint_leaf). It stops early once the
+    validation loss (held-back keypoints of the same scans) has not improved for ``patience``
+    evaluations (0: never). Returns ``(path, last metrics)``."""
+    if trained.kind not in adaptable_kinds():
+        raise checks.ConfigError(f"bundle {trained.kind!r} was trained with labels; adaptation "
+                                 f"is for {', '.join(adaptable_kinds())} bundles")
+    if steps is None and minutes is None:
+        raise checks.ConfigError("adaptation needs steps or minutes (or both)")
+    steps = MAX_STEPS if steps is None else checks.positive(steps, "steps", integer=True)
+    budget_s = 0.0 if minutes is None else 60.0 * checks.positive(minutes, "minutes")
+    learning_rate = checks.positive(learning_rate, "learning_rate")
+    patience = checks.non_negative(patience, "patience", integer=True)
+    config = ml_collections.ConfigDict(trained.config.to_dict())
+    config.data.root = str(data_root)
+    config.data.root_weights = ""          # the training roots' shares mean nothing here
+    # Adapting to the scans one evaluates on is the point; the bundle's card names them.
+    config.data.allow_evaluation_scenes = True
+    config.data.update(dict(data or {}))
+    # Copies from another scan read the scans' ground-truth poses; on the test scans that would
+    # be supervision. A bundle trained with them adapts on second draws of the support (what
+    # training does on unposed scans).
+    if data and dict(data).get("copy_draw") == "scan":
+        raise checks.ConfigError("adaptation cannot use copy_draw='scan': it reads the scans' "
+                                 "ground-truth poses")
+    if config.data.get("copy_draw") == "scan":
+        config.data.copy_draw = "support"
+    config.train.init_bundle = config.train.finetune_bundle = ""
+    config.train.steps = int(steps)
+    config.train.schedule = "constant"     # a short fine-tune at the bundle's peak rate
+    config.train.time_budget_s = budget_s
+    config.train.early_stop_patience = int(patience)
+    if "steps_done" in config.train:          # the adapted bundle records its own
+        del config.train["steps_done"]
+    log_every = max(1, min(config.train.log_every, EVAL_EVERY, steps))
+    config.train.log_every = log_every
+    config.train.eval_every = max(1, min(EVAL_EVERY, steps)) // log_every * log_every
+    config.train.checkpoint_every = max(1, min(config.train.checkpoint_every, 4 * EVAL_EVERY,
+                                               steps))
+    if learning_rate:
+        config.train.learning_rate = float(learning_rate)
+    _, last = loop.train_and_evaluate(config, workdir, progress,
+                                      init_variables=trained.variables)
+    return os.path.join(workdir, "bundle"), last

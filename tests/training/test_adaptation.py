@@ -1,0 +1,28 @@
+"""Adaptation's rules that need no training: which kinds adapt, when it stops early."""
+import pytest
+
+from sphere_jax import checks, training
+from sphere_jax.training import adaptation, loop
+
+
+def test_every_kind_trained_without_labels_adapts():
+    kinds = adaptation.adaptable_kinds()
+    assert {"compass", "lead", "lead_pn", "sound"} <= set(kinds) and "classify" not in kinds
+
+
+def test_a_plateau_is_patience_evaluations_without_a_better_loss():
+    plateau = loop.Plateau(2)
+    seen = [plateau.reached(v) for v in (1.0, 0.9, 0.95, 0.9, 0.8, 0.85, 0.81)]
+    assert seen == [False, False, False, True, False, False, True]
+    never = loop.Plateau(0)
+    assert not any(never.reached(v) for v in (1.0, 2.0, 3.0, 4.0))
+
+
+def test_adaptation_needs_a_budget_and_refuses_labelled_bundles():
+    class Bundle:
+        kind = "classify"
+    with pytest.raises(checks.ConfigError, match="trained with labels"):
+        training.adapt(Bundle(), "scans", 10, "w")
+    Bundle.kind = "lead"
+    with pytest.raises(checks.ConfigError, match="steps or minutes"):
+        training.adapt(Bundle(), "scans", None, "w")
