@@ -10,6 +10,7 @@ RANSAC consensus, ICP fitness below ``--min-fitness``) prints ``FAILED: <reason>
 with status 3.
 
     python -m experiments.register a.ply b.ply --method=fpfh --voxel=0.05 --out=runs/ab
+    python -m experiments.register a.ply b.ply --adapt=5 --out=runs/ab   # adapt first, 5 min
 """
 from __future__ import annotations
 
@@ -45,6 +46,9 @@ def main(argv=None):
     parser.add_argument("--radius", type=_scale, default="auto")
     parser.add_argument("--keypoints", type=int, default=5000)
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")
+    parser.add_argument("--adapt", type=float, default=None, metavar="MINUTES",
+                        help="adapt the method's networks to these two scans first, without "
+                             "labels (kept in OUT/adapted with --out)")
     parser.add_argument("--no-icp", action="store_true")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")
@@ -61,7 +65,8 @@ def main(argv=None):
         source, target = io.read_points(args.source).points, io.read_points(args.target).points
         result = align.register(source, target, args.method, args.voxel, args.radius,
                                 args.keypoints, args.seed, args.bundle, not args.no_icp,
-                                args.min_inliers, args.min_fitness)
+                                args.min_inliers, args.min_fitness, args.adapt,
+                                os.path.join(args.out, "adapted") if args.out else None)
     print(result.summary())
     if not result.ok:                              # scripts over many pairs can tell
         sys.exit(FAILED)

@@ -13,8 +13,11 @@ points as at training time whatever the unit: a Stanford scan (middle side 0.12 
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
+import os
+import tempfile
 import time
 
 import numpy as np
@@ -66,7 +69,8 @@ class Registration:
         t = "\n".join("  " + " ".join(f"{v: .6f}" for v in row) for row in self.transform)
         times = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items())
         status = "registered" if self.ok else f"FAILED: {self.reason}"
-        return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: {self.matches} mutual "
+        return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "
+                f"{self.matches} mutual "
                 f"matches, {self.inliers} RANSAC inliers; ICP fitness {self.fitness:.3f}, RMSE "
                 f"{self.rmse:.4g}\nvoxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}")
 
@@ -100,7 +104,7 @@ def auto_scale(*clouds):
 
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
              n_keypoints=5000, seed=0, bundle=None, icp=True, min_inliers=MIN_INLIERS,
-             min_fitness=MIN_FITNESS) -> Registration:
+             min_fitness=MIN_FITNESS, adapt=None, adapt_workdir=None) -> Registration:
     """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d point clouds or file
     paths, any unit).
 
@@ -118,8 +122,11 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
         failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
         voxelised points in a cloud or ``MIN_MATCHES`` mutual matches.
+      adapt: minutes of adaptation of the method's bundles to these two scans first, without
+        labels (:func:`adapted_bundles`); ``adapt_workdir`` keeps the adapted bundles
+        (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``), else a temporary
+        folder does.
     """
-    from sphere_jax.features import methods, voted
     checks.choice(method, "method", LEARNED + HANDCRAFTED + VOTED)
     source, target = (_points(x, name) for x, name in ((source, "source"), (target, "target")))
     auto_voxel, auto_radius = (auto_scale(source, target) if "auto" in (voxel, radius)
@@ -151,11 +158,54 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if few:
         return fail(reason="too few points on the voxel grid: " + ", ".join(
             f"{n} has {k} at voxel {voxel:.4g}" for n, k in few) + f" (at least {MIN_POINTS})")
-    distance = 2.5 * voxel                  # RANSAC's and ICP's reach
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     if bundle is not None:
         from sphere_jax import api
         bundles[api.load_bundle(bundle).kind] = api.bundle_path(bundle)
+    if adapt:
+        with contextlib.ExitStack() as stack:
+            folder = adapt_workdir or stack.enter_context(tempfile.TemporaryDirectory())
+            bundles = adapted_bundles(method, bundles, source, target, voxel, radius,
+                                      checks.positive(adapt, "adapt"), folder)
+            lap("adaptation")
+            return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
+                          min_fitness, seconds, lap, fail)
+    return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
+                  min_fitness, seconds, lap, fail)
+
+
+def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir):
+    """``bundles`` with those ``method`` uses adapted to the two scans for ``minutes`` in all
+    (shared equally), each with its own loss and no label (:mod:`sphere_jax.training`), at
+    the registration's voxel and radius."""
+    from sphere_jax import api, training
+    from sphere_jax.features import methods
+    kinds = methods.BUNDLE_OF.get(method, ())
+    if not kinds:
+        raise checks.InputError("adapt", "a learned method", f"method {method!r}, which has "
+                                f"no network to adapt")
+    os.makedirs(workdir, exist_ok=True)
+    scans = []
+    for name, points in (("source", source), ("target", target)):
+        scans.append(os.path.join(workdir, f"{name}.npy"))
+        np.save(scans[-1], np.asarray(points, np.float32))
+    out = dict(bundles)
+    for kind in kinds:
+        trained = api.load_bundle(bundles[kind])
+        d = trained.config.data
+        out[kind], _ = training.adapt(
+            trained, ",".join(scans), None, os.path.join(workdir, kind),
+            minutes=minutes / len(kinds),
+            data=dict(voxel=voxel, radius=radius,
+                      keypoint_leaf=d.keypoint_leaf * radius / d.radius))
+    return out
+
+
+def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min_fitness,
+           seconds, lap, fail):
+    """Describe, match, RANSAC and ICP two prepared fragments (:func:`register`)."""
+    from sphere_jax.features import methods, voted
+    distance = 2.5 * voxel                  # RANSAC's and ICP's reach
     if method in VOTED:
         frames = voted.voted_frames(method, radius, bundles)
         agree = functools.partial(consensus, max_distance=distance, seed=seed)

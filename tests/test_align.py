@@ -96,3 +96,25 @@ def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
         register_cli.main([str(tmp_path / "a.npy"), str(tmp_path / "a.npy"),
                            f"--out={tmp_path / 'taken'}"])
     assert out.value.code == 2 and "--out" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
+    """``--adapt``: LEAD-PN adapted to the two scans (a few seconds here), kept in
+    OUT/adapted with a card, and the pair still registered within 5° and 10 cm."""
+    (src, dst), t_gt = pair
+    files = []
+    for name, pts in (("src", src), ("dst", dst)):
+        files.append(str(tmp_path / f"{name}.npy"))
+        np.save(files[-1], pts)
+    out = tmp_path / "ab"
+    register_cli.main([*files, "--adapt=0.1", f"--out={out}", "--keypoints=2000"])
+    printed = capsys.readouterr().out
+    assert "adaptation" in printed and "registered" in printed
+    adapted = out / "adapted" / "lead_pn" / "bundle"
+    assert (adapted / "MODEL_CARD.md").is_file()
+    t = np.loadtxt(out / "transform.txt")
+    rre, rte = registration.rre_rte(t, t_gt)
+    assert rre < 5 and rte < 0.10
+    with pytest.raises(sphere_jax.SphereJaxError, match="no network to adapt"):
+        align.register(src, dst, method="fpfh", adapt=1)

@@ -20,11 +20,11 @@ from sphere_jax.data.generators import synthetic
 
 
 def find_scans(root):
-    """Scan files under ``root``: a scan file itself; the fused fragments of a posed RGB-D
-    sequence (:mod:`sphere_jax.data.fusion`); 3DMatch fragments (``cloud_bin_K.ply``) if there
-    are any; else every .ply / .pcd, recursively (sorted)."""
+    """Scan files under ``root``: a scan file itself (any suffix the readers read); the fused
+    fragments of a posed RGB-D sequence (:mod:`sphere_jax.data.fusion`); 3DMatch fragments
+    (``cloud_bin_K.ply``) if there are any; else every .ply / .pcd, recursively (sorted)."""
     root = str(root)
-    if os.path.isfile(root) and root.endswith((".ply", ".pcd")):
+    if os.path.isfile(root) and root.lower().endswith(io.SUFFIXES):
         return [root]
     if not os.path.isdir(root):
         raise checks.MissingError(f"data root {root!r} is neither a scan file nor a folder")

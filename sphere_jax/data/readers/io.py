@@ -20,8 +20,11 @@ from sphere_jax.data.readers.pcd import read_pcd
 from sphere_jax.data.readers.ply import read_ply, write_ply  # noqa: F401
 
 
+SUFFIXES = (".ply", ".pcd", ".off", ".txt", ".xyz", ".npy")
+
+
 def read_points(path) -> Cloud:
-    """Read any supported point file by its suffix (.ply, .pcd, .off, .txt, .xyz, .npy)."""
+    """Read any supported point file by its suffix (:data:`SUFFIXES`)."""
     ext = os.path.splitext(str(path))[1].lower()
     readers = {".ply": read_ply, ".pcd": read_pcd, ".off": read_off, ".txt": read_txt,
                ".xyz": read_xyz, ".npy": read_npy}
