@@ -216,7 +216,8 @@ def stream_chunked(fn, make, n, chunk=None, workers=None):
 
     Concurrent chunks are what uses a multi-core CPU here: XLA runs the loops of the fused
     inference path (:mod:`~sphere_jax.spherical.fused`) on one thread, so one chunk at a time
-    keeps one core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two chunks).
+    keeps one core busy (LEAD 'paper' encoder on 2 cores: 19 ms per patch alone, 12 with two
+    chunks).
     Each chunk in flight holds its own intermediates, so memory grows with ``workers``.
     """
     chunk = checks.positive(DEFAULT_CHUNK if chunk is None else chunk, "chunk", integer=True)

@@ -39,7 +39,8 @@ def get_batch(config, source, step, split="train"):
     if not isinstance(source, pipeline.ShapeSource):
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
                             copy_draw=config.data.get("copy_draw", bundle.DATA_ADDED["copy_draw"]),
-                            copy_jitter=config.data.get("copy_jitter", bundle.DATA_ADDED["copy_jitter"]))
+                            copy_jitter=config.data.get("copy_jitter",
+                                                        bundle.DATA_ADDED["copy_jitter"]))
     split = "test" if split == "val" else split
     if not spec.labelled:                                       # Compass on whole shapes
         return source.batch(step, bs, split, copies=spec.copies,
