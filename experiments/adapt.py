@@ -12,10 +12,9 @@ same command resumes.
 """
 from __future__ import annotations
 
-import argparse
 
 from experiments import cli
-from sphere_jax import align, api, checks, training
+from sphere_jax import align, api, checks, training, workdirs
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import io
 from sphere_jax.training import adaptation
@@ -41,7 +40,7 @@ def auto_data(bundle, roots, voxel="auto", radius="auto"):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bundle", required=True, help="a bundle folder or a shipped kind")
     parser.add_argument("--data", required=True, help="scan folders or files, comma-separated")
     parser.add_argument("--minutes", type=float, default=None,
@@ -55,9 +54,11 @@ def main(argv=None):
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
     minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
-    with cli.refusals():
+    with cli.refusals(arguments=True):
         bundle = api.load_bundle(args.bundle)
         data = auto_data(bundle, args.data, args.voxel, args.radius)
+        workdirs.prepare(args.workdir, "--workdir")
+    with cli.refusals():
         print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "
               f"{data['radius']:.4g}" + (f", {minutes:g} min" if minutes else "")
               + (f", at most {args.steps} steps" if args.steps else ""))

@@ -7,6 +7,7 @@ line and status 1. Anything else is a bug and keeps its traceback.
 """
 from __future__ import annotations
 
+import argparse
 import contextlib
 import importlib.util
 import os
@@ -54,15 +55,25 @@ def run(main):
 
 
 @contextlib.contextmanager
-def refusals():
+def refusals(arguments=False):
     """The project's refusals inside as one line: bad usage, input or config values exit 2,
-    any other :class:`~sphere_jax.SphereJaxError` 1 (the argparse mains use it directly)."""
+    any other :class:`~sphere_jax.SphereJaxError` 1 (the argparse mains use it directly).
+    ``arguments``: the block only reads what the command line names (bundles, scans, files),
+    so every refusal there is the command line's: exit 2."""
     try:
         yield
     except (app.UsageError, checks.ConfigError, checks.InputError) as e:
         fail(e)
     except checks.SphereJaxError as e:
-        fail(e, 1)
+        fail(e, USAGE if arguments else 1)
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse whose refusals are one line on stderr with exit status 2, like the absl mains'
+    (argparse's own print the usage first)."""
+
+    def error(self, message):
+        fail(message)
 
 
 def _guarded(main):

@@ -12,7 +12,6 @@ keypoints and batches without open3d (``experiments/gpu_paper.sh`` carries one).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
@@ -20,7 +19,7 @@ from experiments import cli
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=None,
                         help="output folder (default data: the package's cache folder)")
     parser.add_argument("--seed", type=int, default=0)
@@ -34,6 +33,8 @@ def main(argv=None):
         from sphere_jax.data import pipeline
         if not args.out:
             parser.error("--pack needs --out")
+        with cli.refusals(arguments=True):
+            pipeline.scan_paths(args.pack)          # every entry exists, before any work
         with cli.refusals():
             folders = pipeline.pack_scans(args.pack, args.voxel, args.out)
         print(json.dumps(folders, indent=1))

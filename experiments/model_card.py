@@ -8,13 +8,12 @@ that trained it (for a bundle written before cards existed).
 """
 from __future__ import annotations
 
-import argparse
 
 from experiments import cli
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("bundle", nargs="?",
                         help="a bundle folder (the 'bundle' a training run writes)")
     parser.add_argument("--index", action="store_true",
@@ -25,7 +24,7 @@ def main(argv=None):
     from sphere_jax import model_card, paths
     if args.index == bool(args.bundle):
         parser.error("give a bundle folder or --index")
-    with cli.refusals():
+    with cli.refusals(arguments=True):          # it reads only the bundle it is given
         if args.index:
             print(model_card.weights_index(paths.weights_root(), paths.SHIPPED))
         else:

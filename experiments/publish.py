@@ -11,7 +11,6 @@ model card (:func:`sphere_jax.model_card.add_evaluation`).
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import glob
 import json
@@ -132,7 +131,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", help="experiments.evaluate workdirs")
     parser.add_argument("--headline", default=None, help="the run of the README's table")
     args = parser.parse_args(argv)

@@ -37,7 +37,7 @@ def _scale(text):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("source")
     parser.add_argument("target")
     parser.add_argument("--method", default=align.DEFAULT_METHOD,
@@ -59,10 +59,14 @@ def main(argv=None):
     args = parser.parse_args(argv)
     from sphere_jax import workdirs
     from sphere_jax.data.readers import io
-    with cli.refusals():
+    with cli.refusals(arguments=True):
         if args.out:                               # before the work, not after it
             workdirs.prepare(args.out, "--out")
         source, target = io.read_points(args.source).points, io.read_points(args.target).points
+        if args.bundle is not None:
+            from sphere_jax import api
+            api.load_bundle(args.bundle)
+    with cli.refusals():
         result = align.register(source, target, args.method, args.voxel, args.radius,
                                 args.keypoints, args.seed, args.bundle, not args.no_icp,
                                 args.min_inliers, args.min_fitness, args.adapt,

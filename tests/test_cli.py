@@ -37,6 +37,37 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     assert not (tmp_path / "w").exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["experiments.adapt", "--bundle=nope", "--data=x"], "adapt: error: bundle "),
+    (["experiments.adapt", "--bundle=lead", "--data=/nonexistent"],
+     "adapt: error: data root '/nonexistent' is neither a scan file nor a folder"),
+    (["experiments.adapt", "--bundle=lead"], "adapt: error: the following arguments are "
+                                             "required: --data"),
+    (["experiments.register", "/nonexistent.ply", "b.ply"], "register: error: "
+                                                            "/nonexistent.ply: no such file"),
+    (["experiments.register", "a.ply", "b.ply", "--method=nope"],
+     "register: error: argument --method: invalid choice: 'nope'"),
+    (["experiments.make_data", "--pack=/nonexistent"],
+     "make_data: error: data root '/nonexistent' is neither"),
+    (["experiments.model_card", "/nonexistent"], "model_card: error: bundle /nonexistent: "
+                                                 "not a bundle"),
+    (["experiments.publish", "/nonexistent"], "publish: error: /nonexistent has no run.json"),
+])
+def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
+    """Each main's arguments (bundles, scans, files) are read before any work; a bad one is
+    one line, exit status 2, and no output folder."""
+    extra = {"experiments.adapt": [f"--workdir={tmp_path / 'w'}"],
+             "experiments.make_data": [f"--out={tmp_path / 'w'}"],
+             "experiments.register": [f"--out={tmp_path / 'w'}"]}.get(args[0], [])
+    if args[-1] == "--bundle=lead":
+        extra = []
+    out = run(*args, *extra)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], out.stderr
+    assert not (tmp_path / "w").exists()
+
+
 @pytest.mark.parametrize("main", ["experiments.train", "experiments.evaluate"])
 def test_unusable_or_busy_workdirs_are_one_line_and_status_2(main, tmp_path):
     from tests.test_workdirs import HOLD
