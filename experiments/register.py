@@ -60,12 +60,12 @@ def main(argv=None):
     from sphere_jax import workdirs
     from sphere_jax.data.readers import io
     with cli.refusals(arguments=True):
-        if args.out:                               # before the work, not after it
-            workdirs.prepare(args.out, "--out")
         source, target = io.read_points(args.source).points, io.read_points(args.target).points
         if args.bundle is not None:
             from sphere_jax import api
             api.load_bundle(args.bundle)
+        if args.out:                               # before the work, not after it
+            workdirs.prepare(args.out, "--out")
     with cli.refusals():
         result = align.register(source, target, args.method, args.voxel, args.radius,
                                 args.keypoints, args.seed, args.bundle, not args.no_icp,
