@@ -61,9 +61,12 @@ def stamp(record) -> str:
     time."""
     bundles = ", ".join(f"{k} `{v['path']}` ({v['steps_done']} steps)"
                         for k, v in record.get("bundles", {}).items())
+    took = f"{record['wall_s'] / 60:.0f} min"
+    if record.get("resumed"):
+        took = f"resumed from the results an interrupted run kept, the last part {took}"
     return (f"`{record.get('command') or 'python -m experiments.evaluate'}`\n\n"
             f"Data: {data_of(record)}. Bundles: {bundles or 'none'}. Run {record['date']}, "
-            f"{record['wall_s'] / 60:.0f} min.")
+            f"{took}.")
 
 
 def headline_table(run_dir) -> str:

@@ -8,6 +8,7 @@ A new task is a module with such a ``run`` and one line in :data:`TASKS`.
 from __future__ import annotations
 
 import datetime
+import glob
 import importlib
 import json
 import os
@@ -47,13 +48,15 @@ def run(config, workdir, progress=True, command=None):
     module = task_module(config.task)
     checks.config_values(config)
     start = time.perf_counter()
+    # Results kept by an interrupted run (eval/resume.py): its wall time is not this run's.
+    resumed = bool(glob.glob(os.path.join(str(workdir), "finished", "*", "*.pkl")))
     import jax
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
         rows, md = module.run(config, workdir, progress)
     if md:                                        # in a multi-process run: process 0 only
         record = {"command": command, "task": config.task, "config": config.to_dict(),
                   "bundles": bundles_used(config), "date": datetime.date.today().isoformat(),
-                  "wall_s": round(time.perf_counter() - start, 1)}
+                  "wall_s": round(time.perf_counter() - start, 1), "resumed": resumed}
         io.atomic_write(os.path.join(workdir, RUN_RECORD),
                         json.dumps(record, indent=1, default=str).encode())
     return rows, md

@@ -1,5 +1,6 @@
 """The benchmarks end to end at 'tiny' size: files, columns, mean rows, plots, clear errors."""
 import csv
+import json
 import os
 
 import pytest
@@ -138,6 +139,8 @@ def test_a_killed_evaluation_redoes_only_what_it_had_not_finished(tmp_path, monk
     die = False
     tasks.run(c, str(tmp_path / "cut"), progress=False)
     assert set(calls) == {"shot"}                            # fpfh was kept
+    record = lambda run: json.loads((tmp_path / run / "run.json").read_text())
+    assert record("cut")["resumed"] and not record("whole")["resumed"]
     strip = lambda rows: [{k: v for k, v in r.items() if k != "ms_per_keypoint"} for r in rows]
     assert strip(_read_csv(tmp_path / "cut" / "results.csv")) == \
         strip(_read_csv(tmp_path / "whole" / "results.csv"))
