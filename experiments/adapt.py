@@ -25,7 +25,6 @@ SCALE_SCANS = 8          # scans read to choose the scale (the first ones, in fi
 def auto_data(bundle, roots, voxel="auto", radius="auto"):
     """``config.data`` overrides putting ``roots``' scans at the scale ``bundle`` was trained
     at (:func:`sphere_jax.align.auto_scale`), keypoints as dense relative to the support."""
-    d = bundle.config.data
     if "auto" in (voxel, radius):
         scans = pipeline.scan_paths(roots)
         if not scans:
@@ -36,7 +35,7 @@ def auto_data(bundle, roots, voxel="auto", radius="auto"):
         radius = auto_radius if radius == "auto" else radius
     voxel, radius = checks.positive(float(voxel), "voxel"), checks.positive(float(radius),
                                                                              "radius")
-    return dict(voxel=voxel, radius=radius, keypoint_leaf=d.keypoint_leaf * radius / d.radius)
+    return adaptation.data_at_scale(bundle, voxel, radius)
 
 
 def main(argv=None):

@@ -162,16 +162,14 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if bundle is not None:
         from sphere_jax import api
         bundles[api.load_bundle(bundle).kind] = api.bundle_path(bundle)
-    if adapt:
-        with contextlib.ExitStack() as stack:
+    with contextlib.ExitStack() as stack:        # a temporary folder lives while it is used
+        if adapt:
             folder = adapt_workdir or stack.enter_context(tempfile.TemporaryDirectory())
             bundles = adapted_bundles(method, bundles, source, target, voxel, radius,
                                       checks.positive(adapt, "adapt"), folder)
             lap("adaptation")
-            return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
-                          min_fitness, seconds, lap, fail)
-    return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
-                  min_fitness, seconds, lap, fail)
+        return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
+                      min_fitness, seconds, lap, fail)
 
 
 def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir):
@@ -180,6 +178,7 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     the registration's voxel and radius."""
     from sphere_jax import api, training
     from sphere_jax.features import methods
+    from sphere_jax.training import adaptation
     kinds = methods.BUNDLE_OF.get(method, ())
     if not kinds:
         raise checks.InputError("adapt", "a learned method", f"method {method!r}, which has "
@@ -192,12 +191,9 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     out = dict(bundles)
     for kind in kinds:
         trained = api.load_bundle(bundles[kind])
-        d = trained.config.data
-        out[kind], _ = training.adapt(
-            trained, ",".join(scans), None, os.path.join(workdir, kind),
-            minutes=minutes / len(kinds),
-            data=dict(voxel=voxel, radius=radius,
-                      keypoint_leaf=d.keypoint_leaf * radius / d.radius))
+        out[kind], _ = training.adapt(trained, ",".join(scans), None,
+                                      os.path.join(workdir, kind), minutes=minutes / len(kinds),
+                                      data=adaptation.data_at_scale(trained, voxel, radius))
     return out
 
 

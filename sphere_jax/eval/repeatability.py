@@ -20,6 +20,7 @@ from sphere_jax.eval import processes, report, resume, tasks
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.features import methods as method_lib
 from sphere_jax.spherical import so3
+from sphere_jax.training import adaptation
 
 RHO = 0.97
 
@@ -124,15 +125,12 @@ def adapted_bundles(config, bundles, names, workdir, progress):
     for kind, spec in models.SPECS.items():
         if spec.orient is not None and kind in names:
             trained = api.load_bundle(bundles[kind])
-            d = trained.config.data
-            scale = config.data.radius / d.radius
             out[kind], _ = training.adapt(trained, scene_lib.data_root(config),
                                           config.adapt_steps,
                                           os.path.join(workdir, f"adapted_{kind}"),
                                           progress=progress,
-                                          data=dict(voxel=config.data.voxel,
-                                                    radius=config.data.radius,
-                                                    keypoint_leaf=d.keypoint_leaf * scale))
+                                          data=adaptation.data_at_scale(
+                                              trained, config.data.voxel, config.data.radius))
     return out
 
 

@@ -16,8 +16,9 @@ import time
 import warnings
 
 from sphere_jax import bundle, checks, workdirs
-from sphere_jax.features import methods
 from sphere_jax.data.readers import io
+from sphere_jax.eval import resume
+from sphere_jax.features import methods
 
 TASKS = {
     "registration": "sphere_jax.eval.registration",      # seed 4.1-4.4: FMR, inlier ratio, RR
@@ -49,7 +50,7 @@ def run(config, workdir, progress=True, command=None):
     checks.config_values(config)
     start = time.perf_counter()
     # Results kept by an interrupted run (eval/resume.py): its wall time is not this run's.
-    resumed = bool(glob.glob(os.path.join(str(workdir), "finished", "*", "*.pkl")))
+    resumed = bool(glob.glob(os.path.join(str(workdir), resume.FOLDER, "*", "*.pkl")))
     import jax
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
         rows, md = module.run(config, workdir, progress)

@@ -18,6 +18,13 @@ MAX_STEPS = 1_000_000
 PATIENCE, EVAL_EVERY = 3, 25
 
 
+def data_at_scale(trained, voxel, radius):
+    """``config.data`` overrides for scans at another scale: ``voxel`` and ``radius`` in the
+    scans' unit, keypoints as dense relative to the support as in ``trained``'s training."""
+    d = trained.config.data
+    return dict(voxel=voxel, radius=radius, keypoint_leaf=d.keypoint_leaf * radius / d.radius)
+
+
 def adaptable_kinds():
     """The model kinds trained without labels, which can adapt to unlabelled scans."""
     return [k for k, s in models.SPECS.items() if not s.labelled]

@@ -17,12 +17,17 @@ def kitchen_fragment():
     return scenes.prepare(pair_set, pair_set.pairs[0][0], voxel=0.02, n_keypoints=300)
 
 
+def _supports(f, k):
+    """Float64 points, the first ``k`` keypoints, their 0.3 m neighbourhoods and SHOT LRFs."""
+    pts = f.points.astype(np.float64)
+    kp = f.keypoints[:k]
+    nb = radius_neighbourhoods(pts, pts[kp], 0.3)
+    return pts, kp, nb, lrfs.shot_lrf(nb)
+
+
 def test_shot_and_spin_match_loop_reference(kitchen_fragment):
     f = kitchen_fragment
-    pts = f.points.astype(np.float64)
-    kp = f.keypoints[:12]
-    nb = radius_neighbourhoods(pts, pts[kp], 0.3)
-    frames = lrfs.shot_lrf(nb)
+    pts, kp, nb, frames = _supports(f, 12)
     shot = descriptors.shot(nb, f.normals, frames)
     spin = descriptors.spin_image(nb, f.normals[kp])
     assert shot.shape == (12, 352) and spin.shape == (12, 153)
@@ -36,10 +41,7 @@ def test_shot_and_spin_match_loop_reference(kitchen_fragment):
 
 def test_usc_matches_loop_reference(kitchen_fragment):
     f = kitchen_fragment
-    pts = f.points.astype(np.float64)
-    kp = f.keypoints[:6]
-    nb = radius_neighbourhoods(pts, pts[kp], 0.3)
-    frames = lrfs.shot_lrf(nb)
+    pts, kp, nb, frames = _supports(f, 6)
     usc = descriptors.usc(nb, pts, frames)
     assert usc.shape == (6, descriptors.USC_DIM) and descriptors.USC_DIM == 1960
     for k in range(6):
