@@ -20,3 +20,13 @@ def test_learned_flops_add_the_frame_and_the_descriptor():
     patches = (np.random.default_rng(0).normal(size=(8, 1225, 3)) * 0.4).astype(np.float32)
     lead, pair = describe._flops("lead", patches), describe._flops("lead_compass", patches)
     assert lead > 0.01 and pair > lead               # Compass's frame costs flops of its own
+
+
+def test_flops_count_every_block_of_the_fused_layers():
+    # XLA counts a loop's body once: counted per block, the flops per patch would fall as the
+    # chunk grows (8 patches: 4 blocks of LEAD's first layer; 32 patches: 16).
+    rng = np.random.default_rng(1)
+    small, large = ((rng.normal(size=(n, 1225, 3)) * 0.4).astype(np.float32) for n in (8, 32))
+    per_patch = describe._flops("lead", small), describe._flops("lead", large)
+    assert abs(per_patch[0] - per_patch[1]) < 0.01 * per_patch[1]
+    assert per_patch[1] > 0.15           # the layers' GEMMs alone (docs/performance.md)

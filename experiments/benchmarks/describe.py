@@ -81,22 +81,32 @@ def _fragments(keypoints):
 
 
 def _flops(method, chunk_patches):
-    """XLA's flop count per patch of the networks ``method`` runs (None: no network)."""
+    """XLA's flop count per patch of the networks ``method`` runs (None: no network).
+
+    XLA's cost analysis counts a loop's body once, and the fused layers loop over cache-sized
+    blocks (:func:`sphere_jax.spherical.fused.pointwise`): the networks are therefore lowered
+    (never run) with one block for the whole chunk — the same arithmetic, without the loop."""
+    import jax
+    from unittest import mock
     from sphere_jax import api, paths
+    from sphere_jax.spherical import fused
     if method not in NETWORKS:
         return None
     total = 0.0
     for kind, what in NETWORKS[method]:
         b = api.cached_bundle(paths.shipped_bundle(kind, required=True))
         x = chunk_patches[:, :b.config.data.n_points]
+        args = (x,)
         if what == "orient":
-            compiled = b._orient_fn.lower(x).compile()
-        elif method == "lead_compass":              # LEAD in given frames
-            frames = np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3))
-            compiled = b._describe_fn.lower(x, frames).compile()
+            traced = b._orient_fn
         else:
-            compiled = b._describe_fn.lower(x).compile()
-        cost = compiled.cost_analysis()
+            traced = b._describe_fn
+            if method == "lead_compass":              # LEAD in given frames
+                args += (np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3)),)
+        # A new function object: jit would otherwise reuse the trace of the blocked network.
+        unrolled = jax.jit(lambda *a, f=traced.__wrapped__: f(*a))
+        with mock.patch.object(fused, "BLOCK_FLOATS", 2 ** 62):
+            cost = unrolled.lower(*args).compile().cost_analysis()
         cost = cost[0] if isinstance(cost, (list, tuple)) else cost
         total += float(cost.get("flops", 0.0)) / len(x)
     return total / 1e9
