@@ -8,7 +8,8 @@ end), ``train`` (training steps fused vs layer by layer on 1 and 2 devices, patc
 data wait; ``--sizes``, ``--only``, ``--repeats`` steps), ``peers`` (our S2/SO(3) transforms
 against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[bench]'``),
 ``describe`` (per method: ms, GFLOP and share of the matmul peak per keypoint, peak RSS and
-``sphere_jax.register`` end to end on a real pair; ``--keypoints``, ``--only``).
+``sphere_jax.register`` end to end on a real pair; ``--keypoints``, ``--only``), ``stages``
+(the shipped Compass and LEAD stage by stage: ms, GFLOP and share of the peak; ``--only``).
 ``--json`` prints one JSON list of the records instead of the table.
 """
 from __future__ import annotations

@@ -1,0 +1,21 @@
+"""The stages benchmark profiles the shipped networks themselves: its stages, chained, give
+the bundle's own output."""
+import numpy as np
+import pytest
+
+from experiments.benchmarks import stages
+from sphere_jax import api, paths
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", stages.KINDS)
+def test_stages_chain_to_the_networks_output(kind):
+    bundle = api.cached_bundle(paths.shipped_bundle(kind, required=True))
+    rng = np.random.default_rng(0)
+    x = (rng.normal(size=(4, bundle.config.data.n_points, 3)) * 0.4).astype(np.float32)
+    frames = np.broadcast_to(np.eye(3, dtype=np.float32), (4, 3, 3))
+    parts, final = stages.stages(bundle, x, frames)
+    whole = bundle._orient_fn(x) if kind == "compass" else bundle._describe_fn(x, frames)
+    assert np.max(np.abs(np.asarray(final) - np.asarray(whole))) < 1e-4
+    assert [p.name for p in parts][:2] == ["signal", "S2 analysis"]
+    assert sum("pointwise" in p.name for p in parts) == len(bundle.model.features) - 1
