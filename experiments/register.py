@@ -10,6 +10,7 @@ RANSAC consensus, ICP fitness below ``--min-fitness``) prints ``FAILED: <reason>
 with status 3.
 
     python -m experiments.register a.ply b.ply --method=fpfh --voxel=0.05 --out=runs/ab
+    python -m experiments.register a.ply b.ply --method=lead@compass
     python -m experiments.register a.ply b.ply --adapt=5 --out=runs/ab   # adapt first, 5 min
 """
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 
 from experiments import cli
 from sphere_jax import align
+from sphere_jax.features import registry
 
 
 FAILED = 3          # exit status of a registration that did not succeed (2: bad usage)
@@ -41,7 +43,9 @@ def main(argv=None):
     parser.add_argument("source")
     parser.add_argument("target")
     parser.add_argument("--method", default=align.DEFAULT_METHOD,
-                        choices=align.LEARNED + align.HANDCRAFTED + align.VOTED)
+                        choices=registry.spellings("descriptor", "voted"),
+                        help="descriptor[@frame][+vote] or its key (lead@compass = "
+                             "lead_compass)")
     parser.add_argument("--voxel", type=_scale, default="auto")
     parser.add_argument("--radius", type=_scale, default="auto")
     parser.add_argument("--keypoints", type=int, default=5000)

@@ -24,6 +24,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sphere_jax import checks, paths
+from sphere_jax.features import registry
 from sphere_jax.registration.estimation import (SCREEN_ITERATIONS, consensus,
                                                 point_to_plane_icp, ransac_consensus)
 from sphere_jax.registration.fragments import fragment
@@ -32,9 +33,11 @@ from sphere_jax.registration.matching import mutual_matches
 TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel and data.radius
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
 DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descriptor (README)
-LEARNED = ("lead", "lead_compass", "lead_pn", "sound")
-HANDCRAFTED = ("fpfh", "shot", "spin", "usc")
-VOTED = ("lead_vote", "shot_vote")         # described again in a frame voted by a first pass
+# The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
+# as ``lead@compass`` resolve to them).
+LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
+HANDCRAFTED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and not m.learned)
+VOTED = registry.keys("voted")             # described again in a frame voted by a first pass
 
 
 # Below these a registration is reported as failed, not as a result.
@@ -109,11 +112,12 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     paths, any unit).
 
     Args:
-      method: a learned descriptor (``lead_pn``, the default; ``lead``, ``lead_compass``,
-        ``sound``: the shipped bundles), a hand-crafted one (``fpfh``, ``shot``, ``spin``,
-        ``usc``), or one with the pair vote (``lead_vote``, ``shot_vote``:
-        :mod:`sphere_jax.registration.vote`; on the redkitchen pairs they nearly double the
-        inlier ratio; ``lead_vote`` costs what ``lead_compass`` does, plus the matching).
+      method: by its name or key (:mod:`sphere_jax.features.registry`): a learned descriptor
+        (``lead_pn``, the default; ``lead@flare``, ``lead@compass``, ``sound``: the shipped
+        bundles), a hand-crafted one (``fpfh``, ``shot``, ``spin``, ``usc``), or one with the
+        pair vote (``lead@compass+vote``, ``shot+vote``: :mod:`sphere_jax.registration.vote`;
+        on the redkitchen pairs they nearly double the inlier ratio; the LEAD one costs what
+        ``lead@compass`` does, plus the matching). ``Registration.method`` is the key.
       voxel, radius: grid size and support radius in the clouds' unit, or ``"auto"``
         (:func:`auto_scale`).
       n_keypoints: random keypoints per cloud on the voxel grid.
@@ -127,7 +131,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``), else a temporary
         folder does.
     """
-    checks.choice(method, "method", LEARNED + HANDCRAFTED + VOTED)
+    method = registry.resolve(method, ("descriptor", "voted")).key
     source, target = (_points(x, name) for x, name in ((source, "source"), (target, "target")))
     auto_voxel, auto_radius = (auto_scale(source, target) if "auto" in (voxel, radius)
                                else (None, None))

@@ -59,7 +59,7 @@ def run(keypoints=5000, only=None, **_):
     return records
 
 
-def _fragments(keypoints):
+def fragments(keypoints):
     """``(fragment to describe, (source, target) files of the pair to register)``."""
     import glob
     from sphere_jax import paths
@@ -80,36 +80,40 @@ def _fragments(keypoints):
     return frag, (scene.fragment_path(j), scene.fragment_path(i))
 
 
-def _flops(method, chunk_patches):
-    """XLA's flop count per patch of the networks ``method`` runs (None: no network).
+def unrolled_gflop(jitted, *args):
+    """XLA's flop count (GFLOP) of the jitted ``jitted`` on ``args``.
 
     XLA's cost analysis counts a loop's body once, and the fused layers loop over cache-sized
-    blocks (:func:`sphere_jax.spherical.fused.pointwise`): the networks are therefore lowered
-    (never run) with one block for the whole chunk — the same arithmetic, without the loop."""
+    blocks (:func:`sphere_jax.spherical.fused.pointwise`): the function is therefore lowered
+    (never run) with one block for the whole input — the same arithmetic, without the loop."""
     import jax
     from unittest import mock
-    from sphere_jax import api, paths
     from sphere_jax.spherical import fused
+    # A new function object: jit would otherwise reuse the trace of the blocked network.
+    unrolled = jax.jit(lambda *a, f=jitted.__wrapped__: f(*a))
+    with mock.patch.object(fused, "BLOCK_FLOATS", 2 ** 62):
+        cost = unrolled.lower(*args).compile().cost_analysis()
+    cost = cost[0] if isinstance(cost, (list, tuple)) else cost
+    return float(cost.get("flops", 0.0)) / 1e9
+
+
+def _flops(method, chunk_patches):
+    """GFLOP per patch of the networks ``method`` runs (None: no network)."""
+    from sphere_jax import api, paths
     if method not in NETWORKS:
         return None
     total = 0.0
     for kind, what in NETWORKS[method]:
         b = api.cached_bundle(paths.shipped_bundle(kind, required=True))
         x = chunk_patches[:, :b.config.data.n_points]
-        args = (x,)
         if what == "orient":
-            traced = b._orient_fn
+            total += unrolled_gflop(b._orient_fn, x) / len(x)
+        elif method == "lead_compass":              # LEAD in given frames
+            frames = np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3))
+            total += unrolled_gflop(b._describe_fn, x, frames) / len(x)
         else:
-            traced = b._describe_fn
-            if method == "lead_compass":              # LEAD in given frames
-                args += (np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3)),)
-        # A new function object: jit would otherwise reuse the trace of the blocked network.
-        unrolled = jax.jit(lambda *a, f=traced.__wrapped__: f(*a))
-        with mock.patch.object(fused, "BLOCK_FLOATS", 2 ** 62):
-            cost = unrolled.lower(*args).compile().cost_analysis()
-        cost = cost[0] if isinstance(cost, (list, tuple)) else cost
-        total += float(cost.get("flops", 0.0)) / len(x)
-    return total / 1e9
+            total += unrolled_gflop(b._describe_fn, x) / len(x)
+    return total
 
 
 def measure(method, keypoints):
@@ -117,7 +121,7 @@ def measure(method, keypoints):
     from sphere_jax import align, paths
     from sphere_jax.data.readers import io
     from sphere_jax.features import methods
-    frag, files = _fragments(keypoints)
+    frag, files = fragments(keypoints)
     t0 = time.perf_counter()
     src, dst = (io.read_points(f).points for f in files)
     load_s = time.perf_counter() - t0

@@ -13,7 +13,6 @@ network in one call; the stages' outputs are checked against it.
 from __future__ import annotations
 
 import dataclasses
-from unittest import mock
 
 import numpy as np
 import jax
@@ -104,21 +103,12 @@ def stages(bundle, patches, frames=None):
     return out, final
 
 
-def _gflop(stage):
-    from sphere_jax.spherical import fused
-    with mock.patch.object(fused, "BLOCK_FLOATS", 2 ** 62):     # every block counts
-        fn = jax.jit(lambda *a, f=stage.fn.__wrapped__: f(*a))
-        cost = fn.lower(*stage.args).compile().cost_analysis()
-    cost = cost[0] if isinstance(cost, (list, tuple)) else cost
-    return float(cost.get("flops", 0.0)) / 1e9
-
-
 def run(repeats=5, only=None, **_):
-    from experiments.benchmarks.describe import _fragments
+    from experiments.benchmarks.describe import fragments, unrolled_gflop
     from experiments.benchmarks.layers import matmul_gflops
     from sphere_jax import api, paths
     peak = matmul_gflops()
-    frag, _ = _fragments(4 * CHUNK)
+    frag, _ = fragments(4 * CHUNK)
     records = []
     for kind in KINDS:
         if only and only not in kind:
@@ -138,7 +128,7 @@ def run(repeats=5, only=None, **_):
                                  f"(max difference {err:.2e})")
         for stage in parts + [whole]:
             ms = common.median_ms(lambda: stage.fn(*stage.args), repeats) / len(x)
-            gflop = _gflop(stage) / len(x)
+            gflop = unrolled_gflop(stage.fn, *stage.args) / len(x)
             rate = gflop / (ms * 1e-3)
             records.append({"network": f"{kind}_mid", "stage": stage.name,
                             "ms_per_keypoint": round(ms, 3),

@@ -18,7 +18,7 @@ import warnings
 from sphere_jax import bundle, checks, workdirs
 from sphere_jax.data.readers import io
 from sphere_jax.eval import resume
-from sphere_jax.features import methods
+from sphere_jax.features import methods, registry
 
 TASKS = {
     "registration": "sphere_jax.eval.registration",      # seed 4.1-4.4: FMR, inlier ratio, RR
@@ -70,7 +70,7 @@ def bundles_used(config):
     if "bundles" not in config:
         return out
     chosen = bundle_paths(config)
-    names = [m.strip() for m in str(config.get("methods", "")).split(",") if m.strip()]
+    names = [_key(m) for m in str(config.get("methods", "")).split(",") if m.strip()]
     if names:                                         # only the kinds the methods use
         needed = {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
         chosen = {k: v for k, v in chosen.items() if k in needed}
@@ -93,10 +93,20 @@ def bundle_paths(config):
     return paths
 
 
+def _key(name):
+    """A method's key (:mod:`~sphere_jax.features.registry`), or ``name`` itself (an LRF, or
+    unknown: the caller says so)."""
+    name = name.strip()
+    try:
+        return registry.resolve(name).key
+    except ValueError:
+        return name
+
+
 def chosen_methods(config, known, bundles):
-    """The methods ``config.methods`` names, each one of ``known``; those whose bundle is
-    missing from ``bundles`` are skipped with a warning."""
-    names = [m.strip() for m in config.methods.split(",") if m.strip()]
+    """The keys of the methods ``config.methods`` names (grammar names or keys, each one of
+    ``known``); those whose bundle is missing from ``bundles`` are skipped with a warning."""
+    names = [_key(m) for m in config.methods.split(",") if m.strip()]
     bad = [m for m in names if m not in known]
     if bad:
         raise ValueError(f"methods {bad} unknown; choose from {', '.join(known)}")

@@ -6,7 +6,8 @@ bundles, and the pair vote's two descriptors.
 ``neighbourhood``  exact radius neighbourhoods as ragged arrays
 ``descriptors``    SHOT, Spin Images, USC (numpy), FPFH (open3d)
 ``lrfs``           SHOT, TOLDI and 3DSN frames
-``methods``        every descriptor and LRF by the name tables and configs use
-``voted``          ``lead_vote`` and ``shot_vote`` for :mod:`sphere_jax.registration.vote`
+``registry``       every method's name (``descriptor[@frame][+procedure]``), key and needs
+``methods``        every descriptor and LRF built from its name
+``voted``          ``lead@compass+vote`` and ``shot+vote`` for :mod:`sphere_jax.registration.vote`
 ================  ============================================================================
 """

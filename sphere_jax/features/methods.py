@@ -5,23 +5,7 @@ Descriptors: ``describe(fragment) -> [K, D]`` for ``fragment.keypoints``; LRFs:
 (:mod:`neighbourhood`); learned ones load inference bundles (:mod:`sphere_jax.api`) and see
 the resampled unit patches they were trained on.
 
-=================  ==============================================================================
-``fpfh``           FPFH (open3d), 33-d
-``shot``           SHOT, 352-d, in the SHOT LRF
-``spin``           Spin Images, 153-d
-``usc``            Unique Shape Context, 1960-d, in the SHOT LRF
-``lead``           LEAD's SO(3) descriptor turned to canonical pose by FLARE
-``lead_compass``   the same, turned by the Compass LRF (needs a compass bundle)
-``lead_pn``        LEAD-PN (PointNet on FLARE-oriented patches)
-``sound``          SOUND, self-oriented
-``lead_gt``        not methods but diagnostics (registration only): LEAD and SHOT in frames read
-``shot_gt``        from each pair's ground truth, so that corresponding patches share one pose
-                   exactly (:class:`GroundTruthFrames`) — how far a perfectly repeatable LRF
-                   would take each
-``lead_vote``      the pair vote (:mod:`voted`): LEAD matched once in Compass's frames, the
-``shot_vote``      pair's rotation voted from the matches' frames, both scans described again
-                   in one frame each (SHOT likewise in its LRF; registration only)
-=================  ==============================================================================
+Names and their keys: :mod:`registry` (``lead@compass`` is ``lead_compass``).
 
 LRFs: ``flare`` (:func:`~sphere_jax.models.flare.flare` on the model's resampled patches, as LEAD
 uses
@@ -37,20 +21,18 @@ import numpy as np
 
 from sphere_jax import api, parallel
 from sphere_jax.data import supports
-from sphere_jax.features import descriptors, lrfs
+from sphere_jax.features import descriptors, lrfs, registry
 from sphere_jax.features.neighbourhood import radius_neighbourhoods
 from sphere_jax.registration.fragments import Fragment
 
-DESCRIPTORS = ("fpfh", "shot", "spin", "usc", "lead", "lead_compass", "lead_pn", "sound")
-# Diagnostics that read each pair's ground truth: the registration benchmark only.
-GROUND_TRUTH = ("lead_gt", "shot_gt")
-# Described per pair, in frames voted from a first pass of matches: registration only.
-VOTED = ("lead_vote", "shot_vote")
-LRFS = ("flare", "shot", "toldi", "3dsn", "compass", "sound")
-# Which bundle each learned method needs.
-BUNDLE_OF = {"lead": ("lead",), "lead_compass": ("lead", "compass"), "lead_pn": ("lead_pn",),
-             "sound": ("sound",), "compass": ("compass",), "lead_gt": ("lead",),
-             "lead_vote": ("lead", "compass")}
+# The keys of :mod:`registry` (grammar names resolve to them), by where they run.
+DESCRIPTORS = registry.keys("descriptor")
+GROUND_TRUTH = registry.keys("diagnostic")      # read each pair's ground truth: registration
+VOTED = registry.keys("voted")                  # described per pair: registration only
+LRFS = tuple(registry.LRFS)
+# Which bundle each learned method and LRF needs.
+BUNDLE_OF = {**{m.key: m.needs for m in registry.METHODS if m.needs},
+             **{k: v for k, v in registry.LRFS.items() if v}}
 FLARE_POINTS = 1225
 
 
@@ -86,8 +68,7 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     """``describe(fragment) -> [K, D]`` for method ``name`` with support ``radius`` (metres);
     ``bundles`` maps a model kind (lead, compass, lead_pn, sound) to a bundle path."""
     bundles = bundles or {}
-    if name not in DESCRIPTORS:
-        raise ValueError(f"unknown descriptor {name!r}; choose from {', '.join(DESCRIPTORS)}")
+    name = registry.resolve(name, ("descriptor",), "name").key
     missing = bundles_needed([name], bundles)
     if missing:
         raise ValueError(f"descriptor {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
@@ -131,9 +112,7 @@ def ground_truth_frames(name, radius, bundles=None, chunk=None) -> GroundTruthFr
     """``lead_gt`` (LEAD's SO(3) maps turned to those frames) or ``shot_gt`` (SHOT's
     histograms binned in them)."""
     bundles = bundles or {}
-    if name not in GROUND_TRUTH:
-        raise ValueError(f"unknown ground-truth diagnostic {name!r}; choose from "
-                         f"{', '.join(GROUND_TRUTH)}")
+    name = registry.resolve(name, ("diagnostic",), "name").key
     if bundles_needed([name], bundles):
         raise ValueError(f"diagnostic {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
 

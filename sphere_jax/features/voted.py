@@ -7,7 +7,7 @@ import jax
 import numpy as np
 
 from sphere_jax import api, parallel
-from sphere_jax.features import descriptors, lrfs
+from sphere_jax.features import descriptors, lrfs, registry
 from sphere_jax.features import methods as method_lib
 from sphere_jax.models import lead as lead_model
 from sphere_jax.registration.vote import HYPOTHESES, TOL_DEG, VotedFrames
@@ -67,13 +67,11 @@ def _lead_vote(radius, bundles, chunk):
 
 def voted_frames(name, radius, bundles=None, chunk=None, tol_deg=TOL_DEG,
                  hypotheses=HYPOTHESES, box=True) -> VotedFrames:
-    """``lead_vote`` or ``shot_vote`` (:data:`~sphere_jax.features.methods.VOTED`) with supports of
+    """``lead@compass+vote`` or ``shot+vote`` (keys ``lead_vote``, ``shot_vote``) with supports of
     ``radius`` metres; ``bundles`` maps lead and compass to bundle paths; ``hypotheses`` modes
     of each pair's vote are tried, and with ``box`` the box turns of the strongest."""
     bundles = bundles or {}
-    if name not in method_lib.VOTED:
-        raise ValueError(f"unknown voted method {name!r}; choose from "
-                         f"{', '.join(method_lib.VOTED)}")
+    name = registry.resolve(name, ("voted",), "name").key
     if method_lib.bundles_needed([name], bundles):
         raise ValueError(f"method {name!r} needs bundle(s) {method_lib.BUNDLE_OF[name]} in "
                          f"'bundles'")

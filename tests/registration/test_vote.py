@@ -134,7 +134,7 @@ def test_vote_skips_frames_it_cannot_use_and_refuses_bad_shapes():
         vote_lib.vote_rotation(fa, fb, tol_deg=0)
     with pytest.raises(ValueError, match="needs bundle"):
         voted_lib.voted_frames("lead_vote", 0.3, {})
-    with pytest.raises(ValueError, match="unknown voted method"):
+    with pytest.raises(ValueError, match="name must be one of"):
         voted_lib.voted_frames("lead", 0.3, BUNDLES)
 
 
