@@ -238,8 +238,9 @@ def run(config, workdir, progress=True):
                  **r.summary) for r in results]
     os.makedirs(workdir, exist_ok=True)
     variant = " (rotated)" if config.rotate else ""
-    md = report.write_tables(workdir, rows, report.REGISTRATION_COLUMNS,
-                             report.REGISTRATION_TABLES, "results",
+    tables = report.titled(report.REGISTRATION_TABLES, tau1=config.tau1, tau2=config.tau2,
+                           rre=RRE_OK_DEG, rte=RTE_OK_M)
+    md = report.write_tables(workdir, rows, report.REGISTRATION_COLUMNS, tables, "results",
                              f"Registration benchmark{variant}")
     _write_votes(workdir, results, variant)
     curve = fmr_curve(results, config.tau2_curve, config.tau1)

@@ -172,6 +172,7 @@ def run(config, workdir, progress=True):
         return [], ""
     rows = [dict(method=r.method, scene=r.scene, **r.summary) for r in results]
     variant = " (rotated)" if config.rotate else ""
-    md = report.write_tables(workdir, rows, report.LRF_COLUMNS, report.LRF_TABLES,
-                             "lrf_results", f"LRF repeatability{variant}")
+    md = report.write_tables(workdir, rows, report.LRF_COLUMNS,
+                             report.titled(report.LRF_TABLES, rho=config.rho), "lrf_results",
+                             f"LRF repeatability{variant}")
     return rows, md

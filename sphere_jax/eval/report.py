@@ -13,15 +13,24 @@ from sphere_jax.data.readers.io import atomic_write
 REGISTRATION_COLUMNS = ("method", "scene", "pairs", "fmr", "inlier_ratio", "n_correct",
                         "rre_deg", "rte_m", "ms_per_keypoint", "rr")
 LRF_COLUMNS = ("method", "scene", "pairs", "rep", "mean_angle_deg")
-REGISTRATION_TABLES = (("fmr", "Feature-match recall (τ1 = 0.10 m, τ2 = 0.05)", "{:.3f}"),
+# Titles are templates: ``{tau1}``, ``{tau2}``, ``{rho}``... are the run's own settings
+# (:func:`titled`).
+REGISTRATION_TABLES = (("fmr", "Feature-match recall (τ1 = {tau1:.2f} m, τ2 = {tau2:.2f})",
+                        "{:.3f}"),
                        ("inlier_ratio", "Inlier ratio", "{:.3f}"),
                        ("n_correct", "Correct correspondences per pair", "{:.1f}"),
-                       ("rr", "Registration recall (RANSAC; RRE < 15°, RTE < 0.3 m)", "{:.3f}"),
+                       ("rr", "Registration recall (RANSAC; RRE < {rre:g}°, RTE < {rte:g} m)",
+                        "{:.3f}"),
                        ("rre_deg", "RRE of registered pairs (degrees)", "{:.2f}"),
                        ("rte_m", "RTE of registered pairs (m)", "{:.3f}"),
                        ("ms_per_keypoint", "Description time (ms per keypoint)", "{:.3f}"))
-LRF_TABLES = (("rep", "LRF repeatability (ρ = 0.97)", "{:.3f}"),
+LRF_TABLES = (("rep", "LRF repeatability (ρ = {rho:.2f})", "{:.3f}"),
               ("mean_angle_deg", "Mean angle between corresponding LRFs (degrees)", "{:.1f}"))
+
+
+def titled(tables, **settings):
+    """``tables`` with their titles filled in from the run's ``settings``."""
+    return tuple((key, title.format(**settings), fmt) for key, title, fmt in tables)
 
 
 def _nanmean(values):
