@@ -48,7 +48,8 @@ def main(argv=None):
                              "lead_compass)")
     parser.add_argument("--voxel", type=_scale, default="auto")
     parser.add_argument("--radius", type=_scale, default="auto")
-    parser.add_argument("--keypoints", type=int, default=5000)
+    parser.add_argument("--keypoints", type=int, default=align.DEFAULT_KEYPOINTS,
+                        help="random keypoints per cloud (fewer: faster, lower recall)")
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")
     parser.add_argument("--adapt", type=float, default=None, metavar="MINUTES",
                         help="adapt the method's networks to these two scans first, without "

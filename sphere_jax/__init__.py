@@ -102,13 +102,19 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
                                     as_open3d=as_open3d)
 
 
-def register(source, target, method="lead_pn", voxel="auto", radius="auto", n_keypoints=5000,
-             seed=0, bundle=None, icp=True):
+def register(source, target, method=None, voxel="auto", radius="auto", n_keypoints=None,
+             seed=0, bundle=None, icp=True, adapt=None, adapt_workdir=None, **limits):
     """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d clouds or file paths):
-    voxel grid → keypoints → descriptors (``method``: the shipped LEAD-PN by default, or
-    ``lead``, ``lead_compass``, ``sound``, ``fpfh``, ``shot``, ``spin``, ``usc``) → mutual
-    matches → RANSAC → point-to-plane ICP. ``voxel`` and ``radius`` default to a scale chosen
-    from the clouds (:func:`sphere_jax.align.auto_scale`).
+    voxel grid → keypoints → descriptors → mutual matches → RANSAC → point-to-plane ICP.
+
+    ``method``: a name of :mod:`sphere_jax.features.registry` (default
+    :data:`sphere_jax.align.DEFAULT_METHOD`, the shipped LEAD-PN; ``lead@compass``, ``sound``,
+    ``fpfh``, ``shot``, ...); ``n_keypoints`` per cloud (default
+    :data:`sphere_jax.align.DEFAULT_KEYPOINTS`). ``voxel`` and ``radius`` default to a scale
+    chosen from the clouds (:func:`sphere_jax.align.auto_scale`). ``adapt``: minutes of
+    adaptation of the method's networks to these two scans first, without labels (kept in
+    ``adapt_workdir``). ``limits``: ``min_inliers``, ``min_fitness`` (below them the result
+    is a failure). Details: :func:`sphere_jax.align.register`.
 
     Returns:
       :class:`sphere_jax.align.Registration`: ``transform`` (4×4, ``p_target = T p_source``),
@@ -116,5 +122,6 @@ def register(source, target, method="lead_pn", voxel="auto", radius="auto", n_ke
       ``seconds`` of each stage; ``.summary()`` prints them.
     """
     from sphere_jax import align
-    return align.register(source, target, method, voxel, radius, n_keypoints, seed, bundle,
-                          icp)
+    return align.register(source, target, method or align.DEFAULT_METHOD, voxel, radius,
+                          n_keypoints or align.DEFAULT_KEYPOINTS, seed, bundle, icp,
+                          adapt=adapt, adapt_workdir=adapt_workdir, **limits)

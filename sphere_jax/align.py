@@ -33,6 +33,7 @@ from sphere_jax.registration.matching import mutual_matches
 TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel and data.radius
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
 DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descriptor (README)
+DEFAULT_KEYPOINTS = 5000                    # per cloud (docs/performance.md: recall against count)
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
@@ -106,8 +107,9 @@ def auto_scale(*clouds):
 
 
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
-             n_keypoints=5000, seed=0, bundle=None, icp=True, min_inliers=MIN_INLIERS,
-             min_fitness=MIN_FITNESS, adapt=None, adapt_workdir=None) -> Registration:
+             n_keypoints=DEFAULT_KEYPOINTS, seed=0, bundle=None, icp=True,
+             min_inliers=MIN_INLIERS, min_fitness=MIN_FITNESS, adapt=None,
+             adapt_workdir=None) -> Registration:
     """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d point clouds or file
     paths, any unit).
 

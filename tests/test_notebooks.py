@@ -17,6 +17,7 @@ def test_notebook_runs(path, monkeypatch):
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")
     monkeypatch.setenv("NOTEBOOK_TRAIN_STEPS", "100")   # the training demo, shortened
+    monkeypatch.setenv("NOTEBOOK_ADAPT_MINUTES", "1")   # the adaptation demo, shortened
     monkeypatch.setenv("MPLBACKEND", "Agg")
     nb = nbformat.read(path, as_version=4)
     start = time.perf_counter()
@@ -34,5 +35,5 @@ def test_notebook_runs(path, monkeypatch):
         assert not any(root + os.sep in text for text in shown), root
 
 
-def test_there_are_four_notebooks():
-    assert len(NOTEBOOKS) == 4
+def test_there_are_five_notebooks():
+    assert len(NOTEBOOKS) == 5

@@ -45,6 +45,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
                                  f"is for {', '.join(adaptable_kinds())} bundles")
     if steps is None and minutes is None:
         raise checks.ConfigError("adaptation needs steps or minutes (or both)")
+    budget_ends = steps is None          # minutes alone: MAX_STEPS is only a cap
     steps = MAX_STEPS if steps is None else checks.positive(steps, "steps", integer=True)
     budget_s = 0.0 if minutes is None else 60.0 * checks.positive(minutes, "minutes")
     learning_rate = checks.positive(learning_rate, "learning_rate")
@@ -67,6 +68,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     config.train.steps = int(steps)
     config.train.schedule = "constant"     # a short fine-tune at the bundle's peak rate
     config.train.time_budget_s = budget_s
+    config.train.budget_ends = budget_ends     # the loop then shows no step total
     config.train.early_stop_patience = int(patience)
     if "steps_done" in config.train:          # the adapted bundle records its own
         del config.train["steps_done"]

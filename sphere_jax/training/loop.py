@@ -225,7 +225,10 @@ def _train(config, workdir, progress, init_variables, command):
     t_last, seen, wait_last = time.perf_counter(), 0, 0.0
     budget, t_start = float(config.train.get("time_budget_s", 0) or 0), t_last
     plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0))
-    bar = tqdm(total=config.train.steps, initial=start, disable=not (progress and main_host),
+    # A run that the time budget ends (an adaptation for minutes) has no meaningful step total.
+    open_ended = budget > 0 and bool(config.train.get("budget_ends", False))
+    bar = tqdm(total=None if open_ended else config.train.steps, initial=start,
+               disable=not (progress and main_host),
                desc=f"{config.model}:{config.get('size', '')}")
     make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
     with open(metrics_path, "a") as log, \
