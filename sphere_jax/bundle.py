@@ -14,6 +14,7 @@ turns a folder into a model; this module only reads and writes the files.
 from __future__ import annotations
 
 import gc
+import hashlib
 import inspect
 import json
 import logging
@@ -210,6 +211,23 @@ def stamp(path):
     """Changes when the bundle is rewritten (for caches keyed on the folder)."""
     cfg = os.path.join(os.path.abspath(str(path)), CONFIG)
     return os.stat(cfg).st_mtime_ns if os.path.isfile(cfg) else None
+
+
+def fingerprint(path) -> str | None:
+    """A hash of what decides the bundle's outputs — its config and variables, not the model
+    card that evaluations complete — the same in any checkout (None: not a bundle)."""
+    path = os.path.abspath(str(path))
+    if not is_bundle(path):
+        return None
+    digest = hashlib.sha256()
+    files = [CONFIG] + sorted(
+        os.path.relpath(os.path.join(root, name), path)
+        for root, _, names in os.walk(os.path.join(path, VARIABLES)) for name in names)
+    for rel in files:
+        digest.update(rel.replace(os.sep, "/").encode() + b"\0")
+        with open(os.path.join(path, rel), "rb") as f:
+            digest.update(hashlib.sha256(f.read()).digest())
+    return digest.hexdigest()[:16]
 
 
 # ---- a run that starts from a bundle: continued at its step, or fine-tuned from its weights --

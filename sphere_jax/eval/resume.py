@@ -2,8 +2,9 @@
 ends, and the same command after a kill redoes only what was not finished.
 
 The results are keyed by everything that decides them — the evaluation config (without its
-method list: each method's result stands alone) and the bundles' files — so a changed config
-or a retrained bundle starts afresh instead of mixing old and new results.
+method list: each method's result stands alone) and the files of the bundles each method uses
+— so a changed config starts afresh, and a retrained bundle redoes the methods that use it and
+keeps the others, instead of mixing old and new results.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import shutil
 
 from sphere_jax import bundle as bundle_files
 from sphere_jax import files
+from sphere_jax.features import registry
 
 FOLDER = "finished"
 
@@ -25,10 +27,12 @@ class Finished:
     whether this process tidies the other keys' results away (process 0)."""
 
     def __init__(self, workdir, config, bundles: dict, primary=True):
-        settings = {k: v for k, v in config.to_dict().items() if k != "methods"}
-        stamps = {k: [str(p), bundle_files.stamp(p)] for k, p in sorted(bundles.items()) if p}
-        text = json.dumps([settings, stamps], sort_keys=True, default=str)
+        # Bundle paths differ between checkouts; their fingerprints (in the file names) count.
+        settings = {k: v for k, v in config.to_dict().items()
+                    if k not in ("methods", "bundles", "bundle")}
+        text = json.dumps(settings, sort_keys=True, default=str)
         self.key = hashlib.sha256(text.encode()).hexdigest()[:16]
+        self.prints = {k: bundle_files.fingerprint(p) for k, p in sorted(bundles.items()) if p}
         # One folder per key: processes of a multi-process run share it without a race, and
         # the results of another config or other bundles are dropped (by process 0 alone).
         root = os.path.join(str(workdir), FOLDER)
@@ -38,9 +42,21 @@ class Finished:
             for other in os.listdir(root):
                 if other != self.key:
                     shutil.rmtree(os.path.join(root, other), ignore_errors=True)
+            for name in os.listdir(self.folder):          # results of other bundles
+                prefix, _, tag = name[:-len(".pkl")].rpartition("__")
+                if name.endswith(".pkl") and tag != self._tag(prefix.rpartition("__")[2]):
+                    os.remove(os.path.join(self.folder, name))
+
+    def _tag(self, method):
+        """Short hash of the fingerprints of the bundles ``method`` uses (None: unknown)."""
+        try:
+            used = [self.prints.get(k) for k in registry.needs(method)]
+        except ValueError:
+            return None
+        return hashlib.sha256(json.dumps(used).encode()).hexdigest()[:8] if used else "none"
 
     def _path(self, method, scene):
-        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{scene}__{method}")
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{scene}__{method}__{self._tag(method)}")
         return os.path.join(self.folder, name + ".pkl")
 
     def get(self, method, scene):
