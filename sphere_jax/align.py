@@ -33,7 +33,9 @@ from sphere_jax.registration.matching import mutual_matches
 TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel and data.radius
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
 DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descriptor (README)
-DEFAULT_KEYPOINTS = 5000                    # per cloud (docs/performance.md: recall against count)
+# Per cloud: the fewest that keep LEAD-PN's registration recall on the 27 redkitchen pairs
+# (2500: 20/27, 5000: 19/27, 1000: 17/27; docs/performance.md) at half the time of 5000.
+DEFAULT_KEYPOINTS = 2500
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
