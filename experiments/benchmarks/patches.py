@@ -32,7 +32,7 @@ def _fragment():
     shared = paths.real_data("3dmatch", "demo_fullres", "cloud_bin_0.ply")
     if shared and os.path.isfile(shared):
         return "3DMatch demo cloud_bin_0 (../shared/data)", io.read_ply(shared).points
-    scene_dir = os.path.join(synthetic.ensure_default_data(), "3dmatch", "synth-room-0")
+    scene_dir = os.path.join(synthetic.default_root("3dmatch"), "synth-room-0")
     return ("synthetic synth-room-0 cloud_bin_0",
             io.read_ply(os.path.join(scene_dir, "cloud_bin_0.ply")).points)
 

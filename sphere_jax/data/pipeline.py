@@ -114,7 +114,7 @@ def parse_weights(text, n_groups):
 
 
 def default_scan_root():
-    return os.path.join(synthetic.ensure_default_data(), "3dmatch")
+    return synthetic.default_root("3dmatch")
 
 
 class PatchSource:

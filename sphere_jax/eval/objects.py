@@ -144,7 +144,7 @@ def markdown(rows):
 
 def run(config, workdir, progress=True):
     """The colour + shape benchmark of ``configs/eval_objects.py``: objects.csv / objects.md."""
-    root = config.data.root or synthetic.ensure_default_objects(config.seed)
+    root = config.data.root or synthetic.default_root("washington", config.seed)
     cats = [c.strip() for c in config.data.categories.split(",") if c.strip()] or None
     samples = washington.read_dataset(root, cats)
     shape = shape_feature(api.load_bundle(config.bundle)) if config.bundle else None

@@ -8,7 +8,6 @@ A model is a set of stored partial views of one object, each a cloud in the obje
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 from typing import Callable, Sequence
 
@@ -186,8 +185,7 @@ def colour_classifier(model_frames, seed=0):
 def run(config, workdir, progress=True):
     """Pose benchmark of ``configs/eval_pose.py`` on labelled RGB-D frames: every visible
     instance of every test frame, from its ground-truth box. Writes pose.csv / pose.md."""
-    root = config.data.root or os.path.join(synthetic.ensure_default_data(config.seed),
-                                            "objects")
+    root = config.data.root or synthetic.default_root("objects", config.seed)
     model_frames, test_frames = labelled.split_frames(rgbd.read_object_frames(root),
                                                          config.model_views)
     if config.data.max_frames:

@@ -11,7 +11,6 @@ detections by group size gives the precision–recall curve and its AUC.
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 from typing import Callable
 
@@ -208,7 +207,7 @@ def run(config, workdir, progress=True):
     """Saliency Boost benchmark of ``configs/eval_recognition.py``: recognition.csv / .md,
     pr_curves.png and time_vs_auc.png."""
     d = config.data
-    root = d.root or os.path.join(synthetic.ensure_default_data(config.seed), "objects")
+    root = d.root or synthetic.default_root("objects", config.seed)
     frames = rgbd.read_object_frames(root)
     model_frames, test_frames = split_frames(frames, config.model_views)
     if d.max_frames:

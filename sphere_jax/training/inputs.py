@@ -1,7 +1,6 @@
 """The training data of a config: its source of patches or shapes, and the batch of a step."""
 from __future__ import annotations
 
-import os
 
 from sphere_jax import api, bundle, models
 from sphere_jax.data import evaluation_scenes, pipeline
@@ -14,7 +13,7 @@ def build_source(config):
     ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.pipeline.ShapeSource`."""
     d = config.data
     if models.spec(config.model).labelled or d.get("shapes", False):
-        root = d.root or os.path.join(synthetic.ensure_default_data(), "modelnet")
+        root = d.root or synthetic.default_root("modelnet")
         return pipeline.ShapeSource(root, d.n_points, config.seed,
                                     d.get("holdout_every", 0))
     allow = bool(d.get("allow_evaluation_scenes", False))

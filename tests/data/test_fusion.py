@@ -17,7 +17,7 @@ def frames():
     real = paths.real_data("rgbd", "3dmatch_toolbox", "rgbd-frames")
     if real and os.path.isdir(real):
         return real
-    return os.path.join(synthetic.ensure_default_data(), "objects")
+    return synthetic.default_root("objects")
 
 
 def test_each_frame_lies_on_its_fused_fragment(frames):

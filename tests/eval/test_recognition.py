@@ -1,5 +1,4 @@
 """Recognition: IoU, PR/AUC and grouping on hand-made cases; Saliency Boost on synthetic frames."""
-import os
 
 import numpy as np
 import pytest
@@ -43,7 +42,7 @@ def test_consistency_grouping_finds_the_rigid_set_among_outliers():
 
 @pytest.fixture(scope="module")
 def frames():
-    return rgbd.read_object_frames(os.path.join(synthetic.ensure_default_data(), "objects"))
+    return rgbd.read_object_frames(synthetic.default_root("objects"))
 
 
 def test_saliency_keeps_objects_and_drops_keypoints(frames):

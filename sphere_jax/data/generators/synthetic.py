@@ -21,7 +21,7 @@ import shutil
 import numpy as np
 from sklearn.neighbors import KDTree
 
-from sphere_jax import paths
+from sphere_jax import checks, paths
 from sphere_jax.data import patches
 from sphere_jax.data.readers import io, rgbd, threedmatch
 
@@ -347,6 +347,21 @@ def ensure_default_data(seed=0, out_dir=None):
     os.makedirs(os.path.dirname(out_dir) or ".", exist_ok=True)
     _move_into_place(tmp, out_dir, "summary.json")
     return out_dir
+
+
+DEFAULT_KINDS = ("3dmatch", "modelnet", "objects", "washington")
+
+
+def default_root(kind, seed=0):
+    """The folder of one kind of the default synthetic data, generated on first use: the
+    rooms' fragments in the 3DMatch layout (``3dmatch``), ModelNet-like shapes (``modelnet``),
+    labelled RGB-D object frames (``objects``) or object crops in the Washington layout
+    (``washington``). Every default of a config or benchmark comes from here."""
+    if kind not in DEFAULT_KINDS:
+        raise checks.InputError("kind", f"one of {', '.join(DEFAULT_KINDS)}", repr(kind))
+    if kind == "washington":
+        return ensure_default_objects(seed)
+    return os.path.join(ensure_default_data(seed), kind)
 
 
 def training_rooms_dir(seed):

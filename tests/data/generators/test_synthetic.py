@@ -144,3 +144,11 @@ def test_a_second_process_generating_the_default_data_keeps_the_first_copy(tmp_p
     assert synthetic.ensure_default_data(out_dir=str(out)) == str(out)
     assert (out / "summary.json").read_text() == "theirs"
     assert os.listdir(tmp_path) == ["synthetic"]                 # our copy is gone
+
+
+def test_default_root_owns_every_kind_of_default_data():
+    for kind in ("3dmatch", "modelnet", "objects"):
+        root = synthetic.default_root(kind)
+        assert os.path.isdir(root) and os.path.basename(root) == kind
+    with pytest.raises(ValueError, match="kind must be one of 3dmatch"):
+        synthetic.default_root("kitti")
