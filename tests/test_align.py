@@ -19,6 +19,7 @@ def pair():
     return demo.fragment_pair()      # redkitchen 5 -> 0 (or a synthetic room pair)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scale", [1.0, 10.0])
 def test_register_real_fragments_at_any_scale(pair, scale):
     (src, dst), t_gt = pair
@@ -35,6 +36,7 @@ def test_register_real_fragments_at_any_scale(pair, scale):
     assert result.inliers >= 30 and result.fitness > 0.3
 
 
+@pytest.mark.slow
 def test_register_with_the_pair_vote(pair):
     """LEAD matched in Compass's frames, then again in the frame the matches voted."""
     (src, dst), t_gt = pair

@@ -12,6 +12,7 @@ from sphere_jax import api, models, parallel, paths, training
 from tests import reference
 
 
+@pytest.mark.slow
 def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     config = sound.get_config("tiny")
     model = models.build(config)
@@ -195,6 +196,7 @@ def test_support_memory_does_not_grow_with_the_keypoints(sound_bundle):
     assert peaks[2048] < 2.0 * peaks[256], peaks
 
 
+@pytest.mark.slow
 def test_open3d_clouds_in_and_features_out_for_open3d_ransac():
     """open3d users pass their clouds and hand our descriptors to open3d's own RANSAC."""
     import open3d as o3d
@@ -239,6 +241,7 @@ np.savez(sys.argv[1], compass=api.load_bundle('compass').orient(src, kp, chunk=2
 """
 
 
+@pytest.mark.slow
 def test_chunks_split_over_two_host_devices_give_the_same_results(tmp_path):
     """With two local devices every chunk is one SPMD program over both (a sharded batch
     axis); frames and descriptors equal those of one device."""

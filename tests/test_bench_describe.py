@@ -1,5 +1,6 @@
 """The describe benchmark's records: the keys the speed issue asks for, a hand-crafted method
 with no network flops, and the learned pair's flops from XLA's cost analysis."""
+import pytest
 import numpy as np
 
 from experiments.benchmarks import describe
@@ -8,6 +9,7 @@ KEYS = {"method", "ms_per_keypoint", "gflop_per_keypoint", "gflop_per_s", "peak_
         "peak_rss_gb", "register_s"}
 
 
+@pytest.mark.slow
 def test_records_of_a_hand_crafted_method():
     (rec,) = describe.run(keypoints=200, only="fpfh")
     assert KEYS <= set(rec) and rec["method"] == "fpfh"
@@ -16,6 +18,7 @@ def test_records_of_a_hand_crafted_method():
     assert rec["register_stages"]["load"] >= 0 and rec["register_s"] > 0
 
 
+@pytest.mark.slow
 def test_learned_flops_add_the_frame_and_the_descriptor():
     patches = (np.random.default_rng(0).normal(size=(8, 1225, 3)) * 0.4).astype(np.float32)
     lead, pair = describe._flops("lead", patches), describe._flops("lead_compass", patches)

@@ -6,6 +6,7 @@ import json
 
 import jax.numpy as jnp
 import ml_collections
+import pytest
 
 from configs import eval_registration, lead
 from experiments import publish
@@ -15,6 +16,7 @@ from sphere_jax.eval import tasks
 README = "# x\n\nabove\n\n<!-- headline:begin -->\nold\n<!-- headline:end -->\n\nbelow\n"
 
 
+@pytest.mark.slow
 def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
     c = lead.get_config("tiny")
     c.train.update(steps=2, log_every=1, eval_every=1, schedule="warmup_cosine",

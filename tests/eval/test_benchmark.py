@@ -15,6 +15,7 @@ def _read_csv(path):
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 def test_registration_tiny_writes_results(tmp_path, shared):
     c = eval_registration.get_config("tiny")
     c.data.root = os.path.join(shared, "3dmatch", "7-scenes-redkitchen")
@@ -42,6 +43,7 @@ def test_registration_tiny_writes_results(tmp_path, shared):
     assert float(means["shot_vote"]["inlier_ratio"]) > 1.5 * float(means["shot"]["inlier_ratio"])
 
 
+@pytest.mark.slow
 def test_lrf_tiny_on_stanford_layout(tmp_path, shared):
     c = eval_lrf.get_config("stanford")
     c.data.update(root=os.path.join(shared, "stanford", "bunny", "data"), n_keypoints=200,

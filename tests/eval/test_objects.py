@@ -42,6 +42,7 @@ def test_hsv_histogram_of_hand_made_images():
     assert objects.hsv_histogram(red, mask).sum() == 0
 
 
+@pytest.mark.slow
 def test_colour_plus_shape_on_synthetic_crops(tmp_path):
     """Tiny run (4 categories × 3 instances): both features together recognise instances
     across videos better than colour alone, with the shipped LEAD bundle as shape feature."""

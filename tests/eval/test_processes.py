@@ -1,5 +1,6 @@
 """Evaluations split over processes started with jax.distributed: two local processes give
 the tables one process gives, written once, by process 0."""
+import pytest
 import os
 import socket
 import subprocess
@@ -16,6 +17,7 @@ def _port():
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_two_processes_write_the_tables_of_one(tmp_path):
     single = subprocess.run([sys.executable, *ARGS, f"--workdir={tmp_path / 'one'}"], cwd=REPO,
                             capture_output=True, text=True, timeout=600)

@@ -68,6 +68,7 @@ def test_spectral_residual_rejects_bad_images():
         saliency.spectral_residual(np.zeros((2, 2, 3)))
 
 
+@pytest.mark.slow
 def test_recognition_finds_objects_on_synthetic_frames(frames):
     """SHOT with the database of the first two views per scene: above-chance AUC."""
     from sphere_jax.features import methods

@@ -32,6 +32,7 @@ def _scans():
             ("bunny", patches.voxel_downsample(bunny, 0.001), 0.02, (0.8, 1.3))]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["compass", "sound"])
 def test_shipped_frames_rotate_with_the_scan(name, capsys):
     bundle = api.load_bundle(paths.shipped_bundle(name, required=True))

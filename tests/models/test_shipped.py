@@ -1,10 +1,12 @@
 """The shipped bundles' outputs against a fixture recorded before the last refactor
 (``shipped_outputs.py``): a change of structure must not change a single output."""
+import pytest
 import numpy as np
 
 from tests.models import shipped_outputs
 
 
+@pytest.mark.slow
 def test_shipped_bundles_reproduce_the_fixture():
     want = np.load(shipped_outputs.FIXTURE)
     got = shipped_outputs.compute()

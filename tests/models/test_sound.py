@@ -1,5 +1,6 @@
 """SOUND: the descriptor map rotates with the patch, and the fused inference trunk (the shared
 S2 layer handing its spectrum to both branches) equals the layer-by-layer network."""
+import pytest
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -18,6 +19,7 @@ def test_sound_descriptor_map_is_equivariant(capsys):
                                      lambda m, v, x: m.apply(v, x).maps, capsys)
 
 
+@pytest.mark.slow
 def test_sound_fused_trunk_equals_layer_by_layer():
     rng = np.random.default_rng(6)
     # Descriptor branch at lower bandwidth than the LRF branch: the shared trunk's spectrum is

@@ -168,6 +168,7 @@ def test_shot_vote_recovers_the_pair_rotation_and_bins_both_scans_alike(moved_pa
     assert _relative(d_turned, d_g) < 0.02
 
 
+@pytest.mark.slow
 def test_lead_vote_recovers_the_pair_rotation_from_compass_frames(moved_pair):
     """Compass's frames are not exactly repeatable, but enough matches agree for the vote to
     land within a few degrees, and the second pass then describes corresponding keypoints as
