@@ -22,17 +22,46 @@ from sphere_jax.features import registry
 FOLDER = "finished"
 
 
-class Finished:
-    """The finished results of one evaluation in ``workdir/finished/<key>/``; ``primary``:
-    whether this process tidies the other keys' results away (process 0)."""
+class _Keys:
+    """What a result is kept under: the folder ``key`` of the config (bundle paths aside: they
+    differ between checkouts) and, per method, the ``tag`` of the bundles it uses."""
 
-    def __init__(self, workdir, config, bundles: dict, primary=True):
-        # Bundle paths differ between checkouts; their fingerprints (in the file names) count.
+    def __init__(self, config, bundles: dict):
         settings = {k: v for k, v in config.to_dict().items()
                     if k not in ("methods", "bundles", "bundle")}
         text = json.dumps(settings, sort_keys=True, default=str)
         self.key = hashlib.sha256(text.encode()).hexdigest()[:16]
         self.prints = {k: bundle_files.fingerprint(p) for k, p in sorted(bundles.items()) if p}
+
+    def tag(self, method):
+        """Short hash of the fingerprints of the bundles ``method`` uses (None: unknown)."""
+        try:
+            used = [self.prints.get(k) for k in registry.needs(method)]
+        except ValueError:
+            return None
+        return hashlib.sha256(json.dumps(used).encode()).hexdigest()[:8] if used else "none"
+
+    def current(self, name):
+        """Whether the kept file ``name`` (``<scene>__<method>__<tag>.pkl``) is this run's."""
+        prefix, _, tag = name[:-len(".pkl")].rpartition("__")
+        return name.endswith(".pkl") and tag == self.tag(prefix.rpartition("__")[2])
+
+
+def kept(workdir, config, bundles: dict) -> int:
+    """How many results a run of ``config`` with ``bundles`` would take from ``workdir``
+    instead of computing them (0: it starts afresh)."""
+    keys = _Keys(config, bundles)
+    folder = os.path.join(str(workdir), FOLDER, keys.key)
+    return sum(keys.current(n) for n in os.listdir(folder)) if os.path.isdir(folder) else 0
+
+
+class Finished:
+    """The finished results of one evaluation in ``workdir/finished/<key>/``; ``primary``:
+    whether this process tidies the other keys' results away (process 0)."""
+
+    def __init__(self, workdir, config, bundles: dict, primary=True):
+        self._keys = _Keys(config, bundles)
+        self.key = self._keys.key
         # One folder per key: processes of a multi-process run share it without a race, and
         # the results of another config or other bundles are dropped (by process 0 alone).
         root = os.path.join(str(workdir), FOLDER)
@@ -43,20 +72,11 @@ class Finished:
                 if other != self.key:
                     shutil.rmtree(os.path.join(root, other), ignore_errors=True)
             for name in os.listdir(self.folder):          # results of other bundles
-                prefix, _, tag = name[:-len(".pkl")].rpartition("__")
-                if name.endswith(".pkl") and tag != self._tag(prefix.rpartition("__")[2]):
+                if not self._keys.current(name):
                     os.remove(os.path.join(self.folder, name))
 
-    def _tag(self, method):
-        """Short hash of the fingerprints of the bundles ``method`` uses (None: unknown)."""
-        try:
-            used = [self.prints.get(k) for k in registry.needs(method)]
-        except ValueError:
-            return None
-        return hashlib.sha256(json.dumps(used).encode()).hexdigest()[:8] if used else "none"
-
     def _path(self, method, scene):
-        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{scene}__{method}__{self._tag(method)}")
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", f"{scene}__{method}__{self._keys.tag(method)}")
         return os.path.join(self.folder, name + ".pkl")
 
     def get(self, method, scene):

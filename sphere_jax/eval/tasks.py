@@ -8,7 +8,6 @@ A new task is a module with such a ``run`` and one line in :data:`TASKS`.
 from __future__ import annotations
 
 import datetime
-import glob
 import importlib
 import json
 import os
@@ -50,7 +49,8 @@ def run(config, workdir, progress=True, command=None):
     checks.config_values(config)
     start = time.perf_counter()
     # Results kept by an interrupted run (eval/resume.py): its wall time is not this run's.
-    resumed = bool(glob.glob(os.path.join(str(workdir), resume.FOLDER, "*", "*.pkl")))
+    resumed = resume.kept(workdir, config,
+                          bundle_paths(config) if "bundles" in config else {}) > 0
     import jax
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
         rows, md = module.run(config, workdir, progress)

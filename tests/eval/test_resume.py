@@ -34,6 +34,11 @@ def test_kept_results_follow_the_bundles_each_method_uses(tmp_path):
     kept, _ = _kept(tmp_path, {k: str(p) for k, p in moved.items()})    # same files: all kept
     assert all(r is not None and r.value == 1.0 for r in kept.values())
     (moved["lead"] / "variables" / "w.bin").write_bytes(b"2")            # LEAD retrained
+    config = ml_collections.ConfigDict({"seed": 0, "methods": "lead", "bundles": {}})
+    assert resume.kept(tmp_path / "run", config, {k: str(p) for k, p in moved.items()}) == 1
+    assert resume.kept(tmp_path / "run", config, {}) == 1                # fpfh needs none
+    config.seed = 1                                                      # another config
+    assert resume.kept(tmp_path / "run", config, {k: str(p) for k, p in moved.items()}) == 0
     kept, _ = _kept(tmp_path, {k: str(p) for k, p in moved.items()})
     assert kept["fpfh"] is not None
     assert kept["lead"] is None and kept["lead_compass"] is None
