@@ -101,6 +101,15 @@ def section(record, markdown) -> str:
     return f"## {title}\n\n{stamp(record)}\n{body}\n"
 
 
+def same_bundle(recorded, path) -> bool:
+    """Whether the bundle at ``path`` is the one a run recorded (its fingerprint; for runs
+    that recorded none, its steps): a card lists only its own bundle's evaluations."""
+    from sphere_jax import bundle
+    if recorded.get("fingerprint"):
+        return recorded["fingerprint"] == bundle.fingerprint(path)
+    return recorded.get("steps_done") == bundle.steps_done(bundle.read_config(path))
+
+
 def publish(run_dirs, headline=None, results=RESULTS, readme=README):
     runs = [(d, *read_run(d)) for d in run_dirs]
     parts = ["# Results", "",
@@ -125,7 +134,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README):
     for _, record, md in runs:
         for kind, b in record.get("bundles", {}).items():
             path = b["path"] if os.path.isabs(b["path"]) else os.path.join(REPO, b["path"])
-            if os.path.isdir(path):
+            if os.path.isdir(path) and same_bundle(b, path):
                 # One entry per task and data: redkitchen and the bunny share a title.
                 title, body = split_title(record, md)
                 model_card.add_evaluation(path, f"{title} on {data_of(record)}", body,

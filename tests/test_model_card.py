@@ -80,3 +80,29 @@ def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
     card = (path / model_card.CARD).read_text()
     assert "### LRF repeatability on /data/kitchen" in card
     assert "### LRF repeatability on /data/bunny" in card
+
+
+def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
+    """A run of an earlier version of the bundle (another fingerprint, or other steps where
+    none was recorded) stays out of the retrained bundle's card."""
+    path = tmp_path / "bundle"
+    bundle.save(path, ml_collections.ConfigDict({"model": "compass", "data": {"root": "x"},
+                                                 "train": {"steps": 5, "batch_size": 1,
+                                                           "learning_rate": 1e-3}}),
+                {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    runs = []
+    for name, recorded in (("now", {"fingerprint": bundle.fingerprint(path), "steps_done": 5}),
+                           ("old", {"fingerprint": "0" * 16, "steps_done": 5}),
+                           ("older", {"steps_done": 3})):
+        run = tmp_path / f"run_{name}"
+        run.mkdir()
+        (run / "run.json").write_text(json.dumps({
+            "command": f"evaluate {name}", "task": "lrf", "config": {"data": {"root": name}},
+            "bundles": {"compass": {"path": str(path), **recorded}},
+            "date": "2026-01-01", "wall_s": 60}))
+        (run / "lrf_results.md").write_text(f"# LRF repeatability\n\n| {name} |\n")
+        runs.append(str(run))
+    publish.publish(runs, results=str(tmp_path / "results.md"))
+    card = (path / model_card.CARD).read_text()
+    assert "LRF repeatability on now" in card
+    assert "on old" not in card and "on older" not in card

@@ -79,7 +79,8 @@ def bundles_used(config):
         if path and bundle.is_bundle(path):
             inside = not paths.relative(path).startswith("..")
             out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
-                         "steps_done": bundle.steps_done(bundle.read_config(path))}
+                         "steps_done": bundle.steps_done(bundle.read_config(path)),
+                         "fingerprint": bundle.fingerprint(path)}
     return out
 
 
