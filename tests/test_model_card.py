@@ -59,23 +59,30 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
     assert "## Evaluations" in card and "python -m experiments.evaluate X" in card
 
 
-def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
-    """Two LRF runs share the table title; the card keeps both, named by their data."""
-    path = tmp_path / "bundle"
+def _compass_bundle(path, steps):
     bundle.save(path, ml_collections.ConfigDict({"model": "compass", "data": {"root": "x"},
-                                                 "train": {"steps": 1, "batch_size": 1,
+                                                 "train": {"steps": steps, "batch_size": 1,
                                                            "learning_rate": 1e-3}}),
                 {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
-    runs = []
-    for name, root in (("a", "/data/kitchen"), ("b", "/data/bunny")):
-        run = tmp_path / f"run_{name}"
-        run.mkdir()
-        (run / "run.json").write_text(json.dumps({
-            "command": f"evaluate {name}", "task": "lrf", "config": {"data": {"root": root}},
-            "bundles": {"compass": {"path": str(path), "steps_done": 1}},
-            "date": "2026-01-01", "wall_s": 60}))
-        (run / "lrf_results.md").write_text(f"# LRF repeatability\n\n| {name} |\n")
-        runs.append(str(run))
+    return path
+
+
+def _lrf_run(tmp_path, name, root, recorded):
+    """An LRF run's folder (``run.json`` naming the compass bundle as ``recorded``)."""
+    run = tmp_path / f"run_{name}"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({
+        "command": f"evaluate {name}", "task": "lrf", "config": {"data": {"root": root}},
+        "bundles": {"compass": recorded}, "date": "2026-01-01", "wall_s": 60}))
+    (run / "lrf_results.md").write_text(f"# LRF repeatability\n\n| {name} |\n")
+    return str(run)
+
+
+def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
+    """Two LRF runs share the table title; the card keeps both, named by their data."""
+    path = _compass_bundle(tmp_path / "bundle", 1)
+    runs = [_lrf_run(tmp_path, name, root, {"path": str(path), "steps_done": 1})
+            for name, root in (("a", "/data/kitchen"), ("b", "/data/bunny"))]
     publish.publish(runs, results=str(tmp_path / "results.md"))
     card = (path / model_card.CARD).read_text()
     assert "### LRF repeatability on /data/kitchen" in card
@@ -85,23 +92,10 @@ def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
 def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
     """A run of an earlier version of the bundle (another fingerprint, or other steps where
     none was recorded) stays out of the retrained bundle's card."""
-    path = tmp_path / "bundle"
-    bundle.save(path, ml_collections.ConfigDict({"model": "compass", "data": {"root": "x"},
-                                                 "train": {"steps": 5, "batch_size": 1,
-                                                           "learning_rate": 1e-3}}),
-                {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
-    runs = []
-    for name, recorded in (("now", {"fingerprint": bundle.fingerprint(path), "steps_done": 5}),
-                           ("old", {"fingerprint": "0" * 16, "steps_done": 5}),
-                           ("older", {"steps_done": 3})):
-        run = tmp_path / f"run_{name}"
-        run.mkdir()
-        (run / "run.json").write_text(json.dumps({
-            "command": f"evaluate {name}", "task": "lrf", "config": {"data": {"root": name}},
-            "bundles": {"compass": {"path": str(path), **recorded}},
-            "date": "2026-01-01", "wall_s": 60}))
-        (run / "lrf_results.md").write_text(f"# LRF repeatability\n\n| {name} |\n")
-        runs.append(str(run))
+    path = _compass_bundle(tmp_path / "bundle", 5)
+    runs = [_lrf_run(tmp_path, name, name, {"path": str(path), **recorded}) for name, recorded in (
+        ("now", {"fingerprint": bundle.fingerprint(path), "steps_done": 5}),
+        ("old", {"fingerprint": "0" * 16, "steps_done": 5}), ("older", {"steps_done": 3}))]
     publish.publish(runs, results=str(tmp_path / "results.md"))
     card = (path / model_card.CARD).read_text()
     assert "LRF repeatability on now" in card
