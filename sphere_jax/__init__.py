@@ -122,6 +122,8 @@ def register(source, target, method=None, voxel="auto", radius="auto", n_keypoin
       ``seconds`` of each stage; ``.summary()`` prints them.
     """
     from sphere_jax import align
-    return align.register(source, target, method or align.DEFAULT_METHOD, voxel, radius,
-                          n_keypoints or align.DEFAULT_KEYPOINTS, seed, bundle, icp,
-                          adapt=adapt, adapt_workdir=adapt_workdir, **limits)
+    # None, not any false value, means the default: n_keypoints=0 is refused by align.
+    method = align.DEFAULT_METHOD if method is None else method
+    n_keypoints = align.DEFAULT_KEYPOINTS if n_keypoints is None else n_keypoints
+    return align.register(source, target, method, voxel, radius, n_keypoints, seed, bundle,
+                          icp, adapt=adapt, adapt_workdir=adapt_workdir, **limits)

@@ -58,6 +58,8 @@ def test_auto_scale_follows_extent_and_spacing():
         sphere_jax.register(wall, wall, method="orb")
     with pytest.raises(sphere_jax.SphereJaxError, match="voxel must be a positive"):
         sphere_jax.register(wall, wall, voxel=-1)
+    with pytest.raises(sphere_jax.SphereJaxError, match="n_keypoints must be a positive"):
+        sphere_jax.register(wall, wall, n_keypoints=0)       # not the default in disguise
 
 
 def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
