@@ -41,12 +41,13 @@ def _stack(bundle):
                 n_shells=model.n_shells), variables
 
 
-def _affine(variables, i):
-    """Inference batch norm ``(scale [C], shift [C])`` of layer ``i`` (layers._HaarStatistics)."""
-    p = variables["params"][f"GridBatchNorm_{i}"]["BatchNorm_0"]
-    s = variables["batch_stats"][f"GridBatchNorm_{i}"]["BatchNorm_0"]
-    scale = jax.lax.rsqrt(s["var"] + 1e-5) * p["scale"]
-    return scale, p["bias"] - s["mean"] * scale
+def _affine(variables, i, spectrum):
+    """Inference batch norm ``(scale [C], shift [C])`` of layer ``i``: the model's own
+    :class:`layers.GridBatchNorm` applied to the layer's output ``spectrum``."""
+    from sphere_jax.spherical import layers
+    name = f"GridBatchNorm_{i}"
+    return layers.GridBatchNorm().apply({k: v[name] for k, v in variables.items()}, spectrum,
+                                        False)
 
 
 def stages(bundle, patches, frames=None):
@@ -83,7 +84,7 @@ def stages(bundle, patches, frames=None):
             h_in = step(f"{label}, product", lambda c, w, kw=kw: product(c, w, **kw).coeffs,
                        spec[0], w)
             h = lambda c, ch=c_out, b=bw[i + 1]: fused.Spectrum(c, ch, b, True)
-        scale, shift = _affine(variables, i)
+        scale, shift = _affine(variables, i, h(h_in))
         if i < last:
             coeffs = step(f"{label}, pointwise to L={bw[i + 2]}",
                          lambda c, sc, sh, h=h, i=i: fused.pointwise(h(c), sc, sh,
