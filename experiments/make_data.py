@@ -2,13 +2,18 @@
 
     python -m experiments.make_data --out=DIR [--seed=0]
     python -m experiments.make_data --pack=embedded,../shared/data/... --out=.pack [--voxel=0.02]
+    python -m experiments.make_data --lidar=../shared/data/3dmatch/7-scenes-redkitchen --out=DIR
 
 The first: synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shape set, RGB-D
 object frames and object crops in the Washington RGB-D layout (see
 :mod:`sphere_jax.data.generators.synthetic`); same seed, same bytes. The second: each entry of
 a ``data.root`` list voxelised once (:func:`sphere_jax.data.pipeline.pack_scans`), one folder
 per entry; those folders, comma-joined in order, are a ``data.root`` that draws the same
-keypoints and batches without open3d (``experiments/gpu_paper.sh`` carries one).
+keypoints and batches without open3d (``experiments/gpu_paper.sh`` carries one). The third:
+a 3DMatch scene's fragments as a 32-beam spinning LiDAR at their first camera sees them
+(:mod:`sphere_jax.data.generators.lidar`), a sensor the shipped bundles never saw; evaluate
+them with the source's ground truth (``--config.data.gt=``, the folder above its
+``<scene>-evaluation``).
 """
 from __future__ import annotations
 
@@ -27,9 +32,20 @@ def main(argv=None):
     parser.add_argument("--pack", default=None,
                         help="a data.root list to pack (voxelised scans) instead")
     parser.add_argument("--voxel", type=float, default=0.02, help="the pack's voxel (m)")
+    parser.add_argument("--lidar", default=None,
+                        help="a 3DMatch scene folder to rescan with a spinning LiDAR instead")
     args = parser.parse_args(argv)
     t0 = time.time()
-    if args.pack is not None:
+    if args.pack is not None and args.lidar is not None:
+        parser.error("--pack and --lidar are two jobs: give one")
+    if args.lidar is not None:
+        from sphere_jax.data.generators import lidar
+        if not args.out:
+            parser.error("--lidar needs --out")
+        with cli.refusals(arguments=True):
+            counts = lidar.scan_fragments(args.lidar, args.out, seed=args.seed)
+        print(json.dumps(counts, indent=1))
+    elif args.pack is not None:
         from sphere_jax.data import pipeline
         if not args.out:
             parser.error("--pack needs --out")
