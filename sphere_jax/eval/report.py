@@ -15,7 +15,7 @@ REGISTRATION_COLUMNS = ("method", "scene", "pairs", "fmr", "inlier_ratio", "n_co
 LRF_COLUMNS = ("method", "scene", "pairs", "rep", "mean_angle_deg")
 # Titles are templates: ``{tau1}``, ``{tau2}``, ``{rho}``... are the run's own settings
 # (:func:`titled`).
-REGISTRATION_TABLES = (("fmr", "Feature-match recall (τ1 = {tau1:.2f} m, τ2 = {tau2:.2f})",
+REGISTRATION_TABLES = (("fmr", "Feature-match recall (τ1 = {tau1:g} m, τ2 = {tau2:g})",
                         "{:.3f}"),
                        ("inlier_ratio", "Inlier ratio", "{:.3f}"),
                        ("n_correct", "Correct correspondences per pair", "{:.1f}"),

@@ -48,6 +48,15 @@ def test_known_matches_give_known_recall_inliers_and_pose():
     assert summary["pairs"] == 2 and summary["n_correct"] == 7
 
 
+def test_registration_recall_follows_the_runs_translation_threshold():
+    """RTE must be below the run's threshold (its support radius): 2 cm registers a room's
+    pair (0.3 m) but not the bunny's (1.5 cm); RRE must be below 15°."""
+    row = dict(errors=np.zeros(1), inlier_ratio=1.0, n_correct=1)
+    rows = [dict(row, rre_deg=1.0, rte_m=0.02), dict(row, rre_deg=16.0, rte_m=0.001)]
+    assert registration.summarise(rows, rte_ok=0.30)["rr"] == 0.5
+    assert registration.summarise(rows, rte_ok=0.015)["rr"] == 0.0
+
+
 def test_fpfh_ransac_registers_redkitchen_0_5(shared):
     """The issue's acceptance check: FPFH + RANSAC on 3DMatch redkitchen (0, 5)."""
     pair_set = _fixtures.kitchen(shared)
