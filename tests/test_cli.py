@@ -52,6 +52,10 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     (["experiments.model_card", "/nonexistent"], "model_card: error: bundle /nonexistent: "
                                                  "not a bundle"),
     (["experiments.publish", "/nonexistent"], "publish: error: /nonexistent has no run.json"),
+    (["experiments.publish", "/nonexistent", "--adaptation=a"],
+     "publish: error: --adaptation takes BEFORE_RUN:AFTER_RUN"),
+    (["experiments.make_data", "--lidar=/nonexistent"],
+     "make_data: error: /nonexistent: no cloud_bin_K.ply fragments to scan"),
 ])
 def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
     """Each main's arguments (bundles, scans, files) are read before any work; a bad one is

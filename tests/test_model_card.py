@@ -100,3 +100,37 @@ def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
     card = (path / model_card.CARD).read_text()
     assert "LRF repeatability on now" in card
     assert "on old" not in card and "on older" not in card
+
+
+def _registration_run(tmp_path, name, bundles, means):
+    """A registration run's folder: ``run.json`` and the mean rows of ``results.csv``."""
+    run = tmp_path / name
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({
+        "command": f"evaluate {name}", "task": "registration", "bundles": bundles,
+        "config": {"data": {"root": "/data/bunny"}}, "date": "2026-01-01", "wall_s": 60}))
+    (run / "results.md").write_text("# Registration benchmark\n")
+    with open(run / "results.csv", "w") as f:
+        f.write("method,scene,inlier_ratio,n_correct,rr\n")
+        for method, (ir, n, rr) in means.items():
+            f.write(f"{method},bun,0,0,0\n{method},mean,{ir},{n},{rr}\n")
+    return str(run)
+
+
+def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tmp_path):
+    shipped = _compass_bundle(tmp_path / "shipped", 100)
+    adapted = tmp_path / "adapted"
+    bundle.save(adapted, ml_collections.ConfigDict({
+        "model": "compass", "data": {"root": "/scans/mine", "voxel": 0.001, "radius": 0.015},
+        "train": {"steps": 1_000_000, "steps_done": 240, "time_budget_s": 600.0,
+                  "batch_size": 1, "learning_rate": 1e-3}}),
+        {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    before = _registration_run(tmp_path, "before", {"compass": {"path": str(shipped)}},
+                               {"shot": (0.06, 23, 0.4), "lead_compass": (0.08, 55, 0.6)})
+    after = _registration_run(tmp_path, "after", {"compass": {"path": str(adapted)}},
+                              {"lead_compass": (0.10, 70, 0.7)})
+    text = publish.adaptation_section(before, after)
+    assert "| lead_compass | 0.080 | 0.100 | +25% | 55 | 70 | 0.60 | 0.70 |" in text
+    assert "| shot | 0.060 | – | – | 23 | – | 0.40 | – |" in text
+    assert "compass: 240 steps within 10 min on `/scans/mine` at voxel 0.001, radius 0.015" in text
+    assert "Before: `evaluate before`" in text and "After: `evaluate after`" in text
