@@ -59,7 +59,8 @@ def plot_curve(lines, path, title):
     steps, val = validation_curve(lines)
     fig = Figure(figsize=(6, 3.5), dpi=100)
     ax = fig.subplots()
-    ax.plot([ln["step"] for ln in lines], [ln["loss"] for ln in lines], lw=0.8, alpha=0.6,
+    trained = [ln for ln in lines if "loss" in ln]      # not a fine-tune's evaluation before
+    ax.plot([ln["step"] for ln in trained], [ln["loss"] for ln in trained], lw=0.8, alpha=0.6,
             label="training loss (batch)")
     if steps:
         ax.plot(steps, val["val_loss"], "o-", lw=1.5, label="validation loss")
@@ -125,6 +126,9 @@ def render(bundle_dir):
                  f"{train.final_lr_fraction:g}× at step {train.steps}")
     out += [f"- steps: {done} of {train.steps} planned × batch {train.batch_size}; "
             f"learning rate {rate} (Adam)"]
+    if train.get("best_step") is not None:
+        out += [f"- weights of step {train.best_step}, the best validation loss (early "
+                f"stopping; step 0: the weights it started from)"]
     if lines:
         out += [f"- wall time of the training loop: "
                 f"{wall_time_s(lines, train.batch_size) / 60:.1f} min"]

@@ -157,10 +157,31 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     config.data.update(root=f"{scans},{scans}", root_weights="1,1")
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
     adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={scans}",
-                "--steps=2", f"--workdir={tmp_path / 'adapted'}"])
+                "--steps=2", "--patience=0", f"--workdir={tmp_path / 'adapted'}"])
     moved = _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle")
     # Two Adam steps of lr 1e-3 move each weight by at most ~2e-3: adapted, not re-initialised.
     assert 0 < moved < 5e-3
+
+
+def test_an_adaptation_that_never_improves_ships_the_weights_it_started_from(small_root,
+                                                                              tmp_path):
+    """Early stopping keeps the best evaluation's weights, and the evaluation before the first
+    step counts: at a learning rate that wrecks the network, the bundle is the one it started
+    from (step 0 in its log and card)."""
+    from sphere_jax import api, model_card
+    config = tiny("lead", small_root, steps=1)
+    training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
+    trained = api.load_bundle(tmp_path / "src" / "bundle")
+    path, _ = training.adapt(trained, config.data.root, 6, str(tmp_path / "adapted"),
+                             learning_rate=1.0, progress=False, patience=2)
+    log = [json.loads(ln) for ln in (tmp_path / "adapted" / "metrics.jsonl").read_text()
+           .splitlines()]
+    assert log[0]["step"] == 0 and "val_loss" in log[0] and "loss" not in log[0]
+    assert min(ln["val_loss"] for ln in log[1:] if "val_loss" in ln) > log[0]["val_loss"]
+    assert _max_change(tmp_path / "src" / "bundle", path) == 0.0
+    adapted = api.load_bundle(path)
+    assert adapted.config.train.best_step == 0 and adapted.config.train.steps_done >= 2
+    assert "weights of step 0" in open(f"{path}/{model_card.CARD}").read()
 
 
 def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path, capsys):
@@ -171,7 +192,8 @@ def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path,
     config = tiny("lead", small_root, steps=1)
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
     adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={config.data.root}",
-                "--minutes=0.02", "--steps=50", f"--workdir={tmp_path / 'adapted'}"])
+                "--minutes=0.02", "--steps=50", "--patience=0",
+                f"--workdir={tmp_path / 'adapted'}"])
     printed = capsys.readouterr().out
     assert "adapting lead on" in printed and "voxel" in printed and "0.02 min" in printed
     adapted = api.load_bundle(tmp_path / "adapted" / "bundle")
@@ -221,13 +243,13 @@ def _tree_rel_err(a, b):
     return np.sqrt(num / sum(float(np.sum(np.asarray(y) ** 2)) for y in lb))
 
 
-@pytest.mark.parametrize("size", ["tiny", "cpu"])          # 'cpu': bandwidth 8
+@pytest.mark.parametrize("size", ["tiny", "small"])          # 'small': bandwidth 8
 @pytest.mark.parametrize("name", ["compass", "lead", "sound"])
 def test_fused_training_equals_layer_by_layer(name, size):
     """Loss, gradients and new batch statistics of the spectral-domain path (the default)
     against the layer-by-layer reference on whole grids, to 1e-5 — or, where the reference's
     own gradient moves more than that when its input moves by 1e-7 (LEAD's Chamfer loss at
-    'cpu' size: its nearest neighbours switch; measured 6e-5), to twice that movement."""
+    'small' size: its nearest neighbours switch; measured 6e-5), to twice that movement."""
     config = CONFIGS[name].get_config(size)
     batch = _random_batch(config, 4)
     nudged = {**batch, "patches": (batch["patches"] * (1 + 1e-7)).astype(np.float32)}

@@ -70,8 +70,9 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     config.train.time_budget_s = budget_s
     config.train.budget_ends = budget_ends     # the loop then shows no step total
     config.train.early_stop_patience = int(patience)
-    if "steps_done" in config.train:          # the adapted bundle records its own
-        del config.train["steps_done"]
+    for key in ("steps_done", "best_step"):   # the adapted bundle records its own
+        if key in config.train:
+            del config.train[key]
     log_every = max(1, min(config.train.log_every, EVAL_EVERY, steps))
     config.train.log_every = log_every
     config.train.eval_every = max(1, min(EVAL_EVERY, steps)) // log_every * log_every

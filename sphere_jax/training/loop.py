@@ -177,7 +177,10 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     the final state and the last metrics.
 
     ``train.early_stop_patience`` > 0 ends it once the validation loss has not improved for
-    that many evaluations (:class:`Plateau`; adaptation uses it).
+    that many evaluations (:class:`Plateau`; adaptation uses it), and the bundle then keeps
+    the weights of the best evaluation (``train.best_step``); a fine-tune from
+    ``init_variables`` is evaluated before its first step, so a run that never improves on
+    them ships them unchanged.
     ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
     minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
     bundle records the steps done, so the same command with a later budget resumes.
@@ -221,10 +224,17 @@ def _train(config, workdir, progress, init_variables, command):
         if main_host:
             checkpoints.truncate_metrics(metrics_path, start)
     checkpoints.record_workdir(workdir, config)
+    plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0))
+    fresh_finetune = init_variables is not None and start == 0 and mngr.latest_step() is None
+    if plateau.patience and fresh_finetune:
+        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh))
+        plateau.reached(before["val_loss"], state, 0)
+        if main_host:
+            with open(metrics_path, "a") as log:
+                log.write(json.dumps(before) + "\n")
     last = {}
     t_last, seen, wait_last = time.perf_counter(), 0, 0.0
     budget, t_start = float(config.train.get("time_budget_s", 0) or 0), t_last
-    plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0))
     # A run that the time budget ends (an adaptation for minutes) has no meaningful step total.
     open_ended = budget > 0 and bool(config.train.get("budget_ends", False))
     bar = tqdm(total=None if open_ended else config.train.steps, initial=start,
@@ -249,7 +259,7 @@ def _train(config, workdir, progress, init_variables, command):
                 t_last, seen, wait_last = now, 0, batches.wait_s
                 if done % config.train.eval_every == 0 or final:
                     last.update(evaluate(config, source, state, eval_step, mesh))
-                    final = plateau.reached(last["val_loss"]) or final
+                    final = plateau.reached(last["val_loss"], state, done) or final
                 if main_host:
                     log.write(json.dumps(last) + "\n")
                     log.flush()
@@ -265,7 +275,10 @@ def _train(config, workdir, progress, init_variables, command):
     # continued run goes on from there on the same schedule.
     config = ml_collections.ConfigDict(config.to_dict())
     config.train.steps_done = int(last.get("step", config.train.steps))
-    path = checkpoints.save_bundle(workdir, config, state, source.statement())
+    kept = state
+    if plateau.best_state is not None:
+        kept, config.train.best_step = plateau.best_state, plateau.best_step
+    path = checkpoints.save_bundle(workdir, config, kept, source.statement())
     if main_host:
         model_card.write(path, metrics_path, command)
     return state, last
@@ -273,14 +286,21 @@ def _train(config, workdir, progress, init_variables, command):
 
 class Plateau:
     """Early stopping: :meth:`reached` is True once the validation loss has not improved on
-    its best for ``patience`` evaluations in a row (never with ``patience`` 0)."""
+    its best for ``patience`` evaluations in a row (never with ``patience`` 0). With
+    ``patience``, the best evaluation's weights are kept (a host copy of ``params`` and
+    ``batch_stats``: ``best_state``, ``best_step``)."""
 
     def __init__(self, patience: int):
         self.patience, self.best, self.since = patience, float("inf"), 0
+        self.best_state, self.best_step = None, None
 
-    def reached(self, val_loss: float) -> bool:
+    def reached(self, val_loss: float, state=None, step=None) -> bool:
         if val_loss < self.best:
             self.best, self.since = val_loss, 0
+            if self.patience and state is not None:
+                self.best_step = step
+                self.best_state = jax.device_get(
+                    {"params": state["params"], "batch_stats": state["batch_stats"]})
         else:
             self.since += 1
         return bool(self.patience) and self.since >= self.patience

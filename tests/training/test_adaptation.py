@@ -1,4 +1,5 @@
 """Adaptation's rules that need no training: which kinds adapt, when it stops early."""
+import numpy as np
 import pytest
 
 from sphere_jax import checks, training
@@ -16,6 +17,15 @@ def test_a_plateau_is_patience_evaluations_without_a_better_loss():
     assert seen == [False, False, False, True, False, False, True]
     never = loop.Plateau(0)
     assert not any(never.reached(v) for v in (1.0, 2.0, 3.0, 4.0))
+
+
+def test_a_plateau_keeps_the_weights_of_its_best_evaluation():
+    plateau = loop.Plateau(3)
+    for step, v in enumerate((1.0, 0.7, 0.9, 0.8)):
+        plateau.reached(v, {"params": {"w": np.full(2, step)}, "batch_stats": {}}, step)
+    assert plateau.best_step == 1 and plateau.best == 0.7
+    np.testing.assert_array_equal(plateau.best_state["params"]["w"], [1, 1])
+    assert loop.Plateau(0).best_state is None
 
 
 def test_adaptation_needs_a_budget_and_refuses_labelled_bundles():
