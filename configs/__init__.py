@@ -1,5 +1,5 @@
 """ml_collections configs, one file per experiment: training configs take
-``get_config('paper' | 'mid' | 'cpu' | 'tiny')``, evaluation configs ``get_config('' | 'quick' |
+``get_config('paper' | 'mid' | 'small' | 'tiny')``, evaluation configs ``get_config('' | 'quick' |
 'tiny')``; eval_lrf adds 'stanford', eval_classification takes the training sizes.
 """
 from __future__ import annotations

@@ -69,7 +69,7 @@ def get_config(arg=None):
                        features=(40, 40, 40, 1))
         v.P = _variant("2 SO(3) at 8,6, 40 ch", bandwidths=(16, 8, 6, 4),
                        features=(40, 40, 1))
-        v.Q = _variant("'cpu': B = 8, 4 SO(3), 16 ch", bandwidths=(8, 6, 5, 4, 4, 4),
+        v.Q = _variant("'small': B = 8, 4 SO(3), 16 ch", bandwidths=(8, 6, 5, 4, 4, 4),
                        features=(16, 16, 16, 16, 1))
     c.variants = v
     return c

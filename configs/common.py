@@ -9,7 +9,7 @@ from sphere_jax import checks
 # three SO(3) layers at input bandwidths 12, 8, 6 (its configuration F) at 0.64 of the time, and
 # a repeatable frame needs finer cells than B = 8's 22.5° (both axes within 14° at rho = 0.97),
 # so Compass decides at B = 12 (15° cells, refined by the soft-argmax).
-SIZES = ("paper", "mid", "cpu", "tiny")
+SIZES = ("paper", "mid", "small", "tiny")
 
 # Inference chunk of the B = 24 'paper' Compass and SOUND: their SO(3) spectra take ~40 MB per
 # patch (SOUND at chunk 256 peaked at 10 GB), so two chunks of 64 in flight stay well inside
@@ -73,7 +73,7 @@ def base(size: str) -> ml_collections.ConfigDict:
     if size == "mid":
         c.data.n_points = 1024
         c.train.update(steps=20_000, log_every=50, eval_every=500, checkpoint_every=500)
-    elif size == "cpu":
+    elif size == "small":
         c.data.n_points = 512
         c.train.update(steps=1500, log_every=25, eval_every=250, checkpoint_every=250)
     elif size == "tiny":
@@ -96,5 +96,5 @@ def shipped_recipe(c, steps, batch_size, learning_rate=1e-3):
 def decoder_kwargs(size: str) -> dict:
     """Folding-decoder sizes shared by LEAD, LEAD-PN and SOUND ('paper': the model defaults)."""
     return {"paper": {}, "mid": dict(decoder_side=32, decoder_hidden=(512, 256, 128)),
-            "cpu": dict(decoder_side=16, decoder_hidden=(256, 128, 64)),
+            "small": dict(decoder_side=16, decoder_hidden=(256, 128, 64)),
             "tiny": dict(decoder_side=6, decoder_hidden=(16, 16, 8))}[size]

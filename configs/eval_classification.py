@@ -2,8 +2,8 @@
 Compass, both trained on canonical-pose shapes, tested in canonical pose (NR) and with every
 test shape turned by a seeded random rotation (AR).
 
-    python -m experiments.evaluate --config=eval_classification:cpu
-    python -m experiments.evaluate --config=eval_classification:cpu \
+    python -m experiments.evaluate --config=eval_classification:small
+    python -m experiments.evaluate --config=eval_classification:small \
         --config.data.root=/data/modelnet40_normal_resampled
 
 Trains one PointNet per method (``workdir/<method>/``, the ``classify`` config at this size),

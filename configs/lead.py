@@ -1,6 +1,6 @@
 """LEAD: an unsupervised rotation-equivariant descriptor (thesis 4.1).
 
-    python -m experiments.train --config=lead:cpu --workdir=runs/lead_cpu
+    python -m experiments.train --config=lead:small --workdir=runs/lead_small
     python -m experiments.train --config=lead:mid --workdir=runs/lead_mid   # shipped size
 
 Expected: the Chamfer loss (unit-ball patches) falls steadily; the 512-value descriptor is an
@@ -13,12 +13,12 @@ def get_config(arg=None):
     size = common.check_size(arg)
     c = common.base(size)
     c.model = "lead"
-    c.train.batch_size = {"paper": 100, "mid": 32, "cpu": 16, "tiny": 4}[size]
+    c.train.batch_size = {"paper": 100, "mid": 32, "small": 16, "tiny": 4}[size]
     c.model_kwargs = {
         "paper": dict(bandwidths=(24, 16, 12, 8, 6, 4), features=(40, 40, 40, 40, 1)),
         # Table 4.5's F: three SO(3) layers at input bandwidths 12, 8, 6, 40 channels.
         "mid": dict(bandwidths=(16, 12, 8, 6, 4), features=(40, 40, 40, 1)),
-        "cpu": dict(bandwidths=(8, 6, 5, 4, 4, 4), features=(16, 16, 16, 16, 1)),
+        "small": dict(bandwidths=(8, 6, 5, 4, 4, 4), features=(16, 16, 16, 16, 1)),
         "tiny": dict(bandwidths=(4, 4, 4, 4, 4, 4), features=(4, 4, 4, 4, 1)),
     }[size]
     c.model_kwargs.update(common.decoder_kwargs(size))

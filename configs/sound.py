@@ -1,8 +1,8 @@
 """SOUND: a self-orienting descriptor — LEAD and Compass sharing an S2 layer (thesis 4.2).
 
-    python -m experiments.train --config=sound:cpu --workdir=runs/sound_cpu
+    python -m experiments.train --config=sound:small --workdir=runs/sound_small
 
-Loss = 100 · Chamfer + geodesic. Expected: both terms fall within the 'cpu' budget on the
+Loss = 100 · Chamfer + geodesic. Expected: both terms fall within the 'small' budget on the
 embedded scans (minutes on 2 cores).
 """
 from configs import common
@@ -21,7 +21,7 @@ def get_config(arg=None):
         "mid": dict(s2_bandwidths=(16, 12), s2_features=40,
                     descriptor_bandwidths=(12, 8, 6, 4), descriptor_features=(40, 40, 1),
                     lrf_bandwidths=(12, 12, 12, 12), lrf_features=(20, 10, 1)),
-        "cpu": dict(s2_bandwidths=(8, 8), s2_features=16, descriptor_bandwidths=(8, 6, 5, 4),
+        "small": dict(s2_bandwidths=(8, 8), s2_features=16, descriptor_bandwidths=(8, 6, 5, 4),
                     descriptor_features=(16, 16, 1), lrf_bandwidths=(8, 8, 8),
                     lrf_features=(8, 1)),
         "tiny": dict(s2_bandwidths=(4, 4), s2_features=4, descriptor_bandwidths=(4, 4, 4),

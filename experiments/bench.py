@@ -3,7 +3,7 @@
 Suites (one module each in ``experiments/benchmarks/``, whose docstring says what it times):
 ``layers`` (every spherical layer of the seed's models), ``patches`` (keypoints, patches and
 spherical signals on a 3DMatch fragment), ``models`` (forward and description
-per config; ``--sizes=cpu,paper``, ``--only=lead``), ``registration`` (one 3DMatch pair end to
+per config; ``--sizes=small,paper``, ``--only=lead``), ``registration`` (one 3DMatch pair end to
 end), ``train`` (training steps fused vs layer by layer on 1 and 2 devices, patches/s, peak RSS,
 data wait; ``--sizes``, ``--only``, ``--repeats`` steps), ``peers`` (our S2/SO(3) transforms
 against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[bench]'``),
@@ -23,7 +23,7 @@ from experiments import cli
 from experiments.benchmarks import SUITES, common
 
 flags.DEFINE_enum("suite", "layers", SUITES, "which benchmark suite to run")
-flags.DEFINE_string("sizes", "cpu,paper", "models/train suites: config sizes, comma-separated")
+flags.DEFINE_string("sizes", "small,paper", "models/train suites: config sizes, comma-separated")
 flags.DEFINE_integer("keypoints", 5000, "models/registration suites: keypoints per fragment")
 flags.DEFINE_bool("json", False, "print one JSON list of records instead of the table")
 flags.DEFINE_integer("batch", 8, "layers suite: batch size")

@@ -2,10 +2,10 @@
 
 ``--config`` takes an evaluation config — ``eval_registration``, ``eval_lrf``,
 ``eval_classification``, ``eval_recognition``, ``eval_objects``, ``eval_pose`` (optionally
-``:quick``, ``:tiny``, ``eval_lrf:stanford``, ``eval_classification:cpu``) — or a config file
+``:quick``, ``:tiny``, ``eval_lrf:stanford``, ``eval_classification:small``) — or a config file
 path; its ``task`` chooses the plug-in of :mod:`sphere_jax.eval.tasks`. Fields are overridden
 with ``--config.x=...``
-(``--config.methods=fpfh,shot,sound``, ``--config.bundle=runs/sound_cpu/bundle``,
+(``--config.methods=fpfh,shot,sound``, ``--config.bundle=runs/sound_small/bundle``,
 ``--config.data.root=DIR``, ``--config.rotate=True``). Tables are printed and written with the
 CSV and plots to the workdir (default ``runs/<config name>``).
 

@@ -1,7 +1,7 @@
-"""Train a model: ``python -m experiments.train --config=sound[:cpu|:tiny] [--workdir=DIR]``.
+"""Train a model: ``python -m experiments.train --config=sound[:small|:tiny] [--workdir=DIR]``.
 
 ``--config`` takes an experiment name (``sound``), ``name:size`` or a config file path
-(``configs/sound.py:cpu``); fields are overridden with ``--config.train.steps=200`` and the
+(``configs/sound.py:small``); fields are overridden with ``--config.train.steps=200`` and the
 like. Running the same command again resumes from the newest checkpoint in the workdir, with
 any number of devices.
 
@@ -51,7 +51,7 @@ def main(_):
     logging.set_verbosity(logging.WARNING)          # orbax logs every save at INFO
     config = f.config
     if config is None:
-        raise app.UsageError("--config is required, e.g. --config=sound:cpu")
+        raise app.UsageError("--config is required, e.g. --config=sound:small")
     _set_host_devices(f.host_devices)
     from sphere_jax import parallel, training       # after XLA_FLAGS: nothing of JAX ran yet
     if f.distributed or f.coordinator or f.num_processes is not None:

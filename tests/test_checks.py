@@ -111,7 +111,7 @@ def test_config_values(field, value, message):
 
 def test_shipped_configs_pass_their_checks():
     from configs import eval_registration, lead
-    for size in ("paper", "mid", "cpu", "tiny"):
+    for size in ("paper", "mid", "small", "tiny"):
         checks.config_values(lead.get_config(size))
     checks.config_values(eval_registration.get_config("quick"))
     assert checks.config_values(ml_collections.ConfigDict({"chunk": None}))   # a placeholder

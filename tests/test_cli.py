@@ -20,7 +20,7 @@ def run(*args, cwd=ROOT):
      "config.train are: batch_size, checkpoint_every"),
     (["experiments.train", "--config=leed"], "train: error: --config must be one of ablation, "),
     (["experiments.train", "--config=lead:huge"],
-     "must be one of ('paper', 'mid', 'cpu', 'tiny'); got 'huge'"),
+     "must be one of ('paper', 'mid', 'small', 'tiny'); got 'huge'"),
     (["experiments.train", "--config=lead:tiny", "--config.train.steps=-5"],
      "train: error: config.train.steps must be an integer >= 1; got -5"),
     (["experiments.train", "--config=lead:tiny", "--config.train.learning_rate=nan"],

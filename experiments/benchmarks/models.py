@@ -22,7 +22,7 @@ from sphere_jax.data import patches
 from sphere_jax.data.readers import io
 
 
-def run(sizes=("cpu", "paper"), repeats=3, keypoints=5000, only=None, **_):
+def run(sizes=("small", "paper"), repeats=3, keypoints=5000, only=None, **_):
     """Forward time per config and size; description ms per keypoint."""
     records = []
     shared = paths.real_data("3dmatch", "7-scenes-redkitchen", "cloud_bin_0.ply")

@@ -65,7 +65,7 @@ def _child_env(devices: int) -> dict:
     return env
 
 
-def run(sizes=("cpu", "paper"), repeats=3, only=None, devices=(1, 2), **_):
+def run(sizes=("small", "paper"), repeats=3, only=None, devices=(1, 2), **_):
     records = []
     for name in MODELS:
         if only and only not in name:

@@ -17,9 +17,9 @@ def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
     c.train.update(steps=400, batch_size=16, log_every=100, eval_every=400,
                    checkpoint_every=400)
     c.model_kwargs = dict(features=(32, 32, 64), head=(32,))
-    # The shipped 'cpu' whole-shape Compass (B = 8): half the time of the default 'mid' one
+    # The shipped 'small' whole-shape Compass (B = 8): half the time of the default 'mid' one
     # (36 s against 72 s here), which the shipped-outputs fixture checks.
-    c.compass_bundle = paths.shipped_bundle("compass_shapes_cpu", required=True)
+    c.compass_bundle = paths.shipped_bundle("compass_shapes_small", required=True)
     rows, md = classification.run(c, str(tmp_path), progress=False)
     print(md)
     acc = {(r["method"], r["split"]): r["accuracy"] for r in rows}
@@ -37,7 +37,7 @@ def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
 
 def test_compass_train_rotated_turns_only_compass_training_shapes():
     c = eval_classification.get_config("tiny")
-    c.compass_bundle = paths.shipped_bundle("compass_shapes_cpu", required=True)
+    c.compass_bundle = paths.shipped_bundle("compass_shapes_small", required=True)
     assert not classification.method_config(c, "compass+pointnet").data.rotate
     c.compass_train_rotated = True
     assert classification.method_config(c, "compass+pointnet").data.rotate

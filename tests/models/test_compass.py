@@ -21,8 +21,8 @@ def test_compass_map_is_equivariant(capsys):
 def _scans():
     """(name, points, radius, bound on the median and mean error in rad): the real kitchen
     fragment and bunny scan, else an embedded synthetic fragment, whose flat walls and boxes
-    leave more patches symmetric (measured: median 1.11 rad for compass_cpu, 0.91 for
-    sound_cpu, against 0.32 and 0.35 on the kitchen)."""
+    leave more patches symmetric (measured: median 1.11 rad for compass_small, 0.91 for
+    sound_small, against 0.32 and 0.35 on the kitchen)."""
     root = paths.real_data_root()
     pts = patches.voxel_downsample(_fixtures.kitchen_or_embedded().load(0), 0.02)
     if root is None:
