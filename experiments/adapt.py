@@ -49,7 +49,9 @@ def main(argv=None):
     parser.add_argument("--radius", default="auto")
     parser.add_argument("--patience", type=int, default=adaptation.PATIENCE,
                         help="evaluations without improvement before stopping (0: never)")
-    parser.add_argument("--learning_rate", type=float, default=None)
+    parser.add_argument("--learning_rate", type=float, default=None,
+                        help="the rate after a short warm-up (default: a tenth of the "
+                             "bundle's training rate)")
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
     minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
