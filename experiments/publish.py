@@ -114,7 +114,7 @@ def adaptation_section(before_dir, after_dir) -> str:
     """A registration run with the shipped bundles against the same run with adapted ones:
     inlier ratio, correct matches and RR of each method before and after, and each adapted
     bundle's budget, steps and scans (read from the bundle)."""
-    from sphere_jax import bundle
+    from sphere_jax import bundle, model_card
     (before, _), (after, md) = read_run(before_dir), read_run(after_dir)
     old, new = mean_rows(before_dir), mean_rows(after_dir)
     cells = lambda r, key, fmt: fmt.format(float(r[key])) if r and r.get(key) else "–"
@@ -134,9 +134,14 @@ def adaptation_section(before_dir, after_dir) -> str:
             continue
         config = bundle.read_config(rec["path"])
         budget = float(config.train.get("time_budget_s", 0) or 0) / 60
-        adapted.append(f"{kind}: {bundle.steps_done(config)} steps"
-                       + (f" within {budget:g} min" if budget else "")
-                       + f" on `{config.data.root}` at voxel {config.data.voxel:g}, radius "
+        lines = model_card.read_metrics(os.path.join(rec["path"], model_card.METRICS))
+        took = model_card.wall_time_s(lines, config.train.batch_size) / 60
+        best = config.train.get("best_step")
+        adapted.append(f"{kind}: {bundle.steps_done(config)} steps, {took:.1f} min of them"
+                       + (f" (budget {budget:g})" if budget else "")
+                       + ("" if best is None else ", the weights it started from kept (no "
+                          "better validation loss)" if best == 0 else f", weights of step {best}")
+                       + f", on `{config.data.root}` at voxel {config.data.voxel:g}, radius "
                          f"{config.data.radius:g} (`{rec['path']}`)")
     title, _ = split_title(after, md)
     return (f"## Adaptation without labels: {title.lower()} on {data_of(after)}\n\n"

@@ -123,8 +123,12 @@ def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tm
     bundle.save(adapted, ml_collections.ConfigDict({
         "model": "compass", "data": {"root": "/scans/mine", "voxel": 0.001, "radius": 0.015},
         "train": {"steps": 1_000_000, "steps_done": 240, "time_budget_s": 600.0,
-                  "batch_size": 1, "learning_rate": 1e-3}}),
+                  "best_step": 200, "batch_size": 2, "learning_rate": 1e-3}}),
         {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    # 240 steps of 2 patches at 4 patches per second: 2 minutes of steps.
+    (adapted / model_card.METRICS).write_text(json.dumps({"step": 0, "val_loss": 1.0}) + "\n" +
+                                              json.dumps({"step": 240, "patches_per_s": 4.0,
+                                                          "loss": 0.5}) + "\n")
     before = _registration_run(tmp_path, "before", {"compass": {"path": str(shipped)}},
                                {"shot": (0.06, 23, 0.4), "lead_compass": (0.08, 55, 0.6)})
     after = _registration_run(tmp_path, "after", {"compass": {"path": str(adapted)}},
@@ -132,5 +136,6 @@ def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tm
     text = publish.adaptation_section(before, after)
     assert "| lead_compass | 0.080 | 0.100 | +25% | 55 | 70 | 0.60 | 0.70 |" in text
     assert "| shot | 0.060 | – | – | 23 | – | 0.40 | – |" in text
-    assert "compass: 240 steps within 10 min on `/scans/mine` at voxel 0.001, radius 0.015" in text
+    assert ("compass: 240 steps, 2.0 min of them (budget 10), weights of step 200, on "
+            "`/scans/mine` at voxel 0.001, radius 0.015") in text
     assert "Before: `evaluate before`" in text and "After: `evaluate after`" in text
