@@ -101,7 +101,7 @@ def split_title(record, markdown):
 def section(record, markdown) -> str:
     title, body = split_title(record, markdown)
     body = re.sub(r"^# ", "### ", body, flags=re.M)
-    return f"## {title}\n\n{stamp(record)}\n{body}\n"
+    return f"## {title} on {data_of(record)}\n\n{stamp(record)}\n{body}\n"
 
 
 def mean_rows(run_dir) -> dict:
