@@ -121,10 +121,14 @@ def render(bundle_dir):
     out += [f"- network: `{config.model}` {kwargs}"]
     sched = train.get("schedule", "constant")
     rate = f"{train.learning_rate:g}"
-    if sched == "warmup_cosine":
+    if sched == "warmup_cosine" and float(train.final_lr_fraction) == 1.0:
+        rate += f" after {train.warmup_steps} warm-up steps, then constant"
+    elif sched == "warmup_cosine":
         rate += (f", {train.warmup_steps} warm-up steps, cosine decay to "
                  f"{train.final_lr_fraction:g}× at step {train.steps}")
-    out += [f"- steps: {done} of {train.steps} planned × batch {train.batch_size}; "
+    planned = (f"within a {float(train.time_budget_s) / 60:g}-minute budget"
+               if train.get("budget_ends") else f"of {train.steps} planned")
+    out += [f"- steps: {done} {planned} × batch {train.batch_size}; "
             f"learning rate {rate} (Adam)"]
     if train.get("best_step") is not None:
         out += [f"- weights of step {train.best_step}, the best validation loss (early "

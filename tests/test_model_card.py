@@ -139,3 +139,17 @@ def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tm
     assert ("compass: 240 steps, 2.0 min of them (budget 10), weights of step 200, on "
             "`/scans/mine` at voxel 0.001, radius 0.015") in text
     assert "Before: `evaluate before`" in text and "After: `evaluate after`" in text
+
+
+def test_a_minutes_budget_card_has_no_step_total_and_names_the_constant_rate(tmp_path):
+    path = tmp_path / "adapted"
+    bundle.save(path, ml_collections.ConfigDict({
+        "model": "compass", "data": {"root": "x"},
+        "train": {"steps": 1_000_000, "steps_done": 40, "time_budget_s": 300.0,
+                  "budget_ends": True, "schedule": "warmup_cosine", "warmup_steps": 25,
+                  "final_lr_fraction": 1.0, "batch_size": 2, "learning_rate": 1e-4}}),
+        {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    card = open(model_card.render(path)).read()
+    assert "- steps: 40 within a 5-minute budget × batch 2; learning rate 0.0001 after 25 " \
+           "warm-up steps, then constant (Adam)" in card
+    assert "1000000" not in card
