@@ -75,8 +75,7 @@ def stamp(record) -> str:
 def headline_table(run_dir) -> str:
     """Method rows of a registration run's means: FMR, inlier ratio, correct matches, RR,
     description time."""
-    with open(os.path.join(run_dir, "results.csv")) as f:
-        rows = [r for r in csv.DictReader(f) if r["scene"] == "mean"]
+    rows = mean_rows(run_dir).values()
     out = ["| method | " + " | ".join(h for _, h, _ in HEADLINE) + " |",
            "|---" * (len(HEADLINE) + 1) + "|"]
     for r in rows:

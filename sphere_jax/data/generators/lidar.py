@@ -11,10 +11,13 @@ fragments as seen by a LiDAR at their camera) for :mod:`sphere_jax.training.adap
 from __future__ import annotations
 
 import dataclasses
+import json
+import os
 
 import numpy as np
 
-from sphere_jax import checks
+from sphere_jax import checks, files
+from sphere_jax.data.readers import io, ply, threedmatch
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,24 +105,17 @@ def scan_fragments(fragment_dir, out_dir, lidar: Lidar = Lidar(), seed=0):
     fragment's first camera, written to ``out_dir/<scene>/cloud_bin_K.ply``, with the sensor
     in ``lidar.json``. No ground truth is copied: evaluations take the source's
     (``--config.data.gt``), adaptation has none to read. Returns ``{fragment: returns}``."""
-    import glob
-    import json
-    import os
-    import re
-
-    from sphere_jax import files
-    from sphere_jax.data.readers import io, ply
     fragment_dir = os.path.normpath(str(fragment_dir))
-    found = {int(m.group(1)): p for p in glob.glob(os.path.join(fragment_dir, "*.ply"))
-             if (m := re.fullmatch(r"cloud_bin_(\d+)\.ply", os.path.basename(p)))}
-    if not found:
+    ks = threedmatch.fragment_indices(fragment_dir)
+    if not ks:
         raise checks.MissingError(f"{fragment_dir}: no cloud_bin_K.ply fragments to scan")
     out = os.path.join(str(out_dir), os.path.basename(fragment_dir))
     os.makedirs(out, exist_ok=True)
     counts = {}
-    for k in sorted(found):
+    for k in ks:
         rng = np.random.default_rng([seed, k])
-        returns = scan(io.read_points(found[k]).points, lidar, rng=rng)
+        cloud = io.read_points(os.path.join(fragment_dir, f"cloud_bin_{k}.ply")).points
+        returns = scan(cloud, lidar, rng=rng)
         ply.write_ply(os.path.join(out, f"cloud_bin_{k}.ply"), returns)
         counts[k] = len(returns)
     files.atomic_write(os.path.join(out, "lidar.json"), json.dumps(dict(

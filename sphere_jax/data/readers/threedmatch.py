@@ -170,16 +170,20 @@ class FragmentScene:
         return read_keypoint_indices(os.path.join(self.fragment_dir, pattern.format(k=k)))
 
 
+def fragment_indices(fragment_dir) -> list[int]:
+    """The sorted ``K`` of the ``cloud_bin_K.ply`` in a folder ([] when none, or no folder)."""
+    names = (os.path.basename(p) for p in glob.glob(os.path.join(str(fragment_dir), "*.ply")))
+    return sorted(int(m.group(1)) for m in (re.fullmatch(r"cloud_bin_(\d+)\.ply", n)
+                                            for n in names) if m)
+
+
 def load_fragment_scene(fragment_dir, gt_dir=None) -> FragmentScene:
     """A scene folder of ``cloud_bin_K.ply``; ground truth from ``gt_dir`` or, by the official
     layout, ``<fragment_dir>-evaluation/`` or the folder itself."""
     fragment_dir = os.path.normpath(str(fragment_dir))
     if not os.path.isdir(fragment_dir):
         raise DataError(fragment_dir, "no such scene folder")
-    ks = sorted(int(m.group(1)) for m in (re.fullmatch(r"cloud_bin_(\d+)\.ply",
-                                                          os.path.basename(p))
-                                          for p in glob.glob(os.path.join(fragment_dir, "*.ply")))
-                if m)
+    ks = fragment_indices(fragment_dir)
     if not ks:
         raise DataError(fragment_dir, "no cloud_bin_K.ply fragments")
     if gt_dir is None:
