@@ -48,7 +48,8 @@ def main(argv=None):
     parser.add_argument("--voxel", default="auto")
     parser.add_argument("--radius", default="auto")
     parser.add_argument("--patience", type=int, default=adaptation.PATIENCE,
-                        help="evaluations without improvement before stopping (0: never)")
+                        help="evaluations without improvement before stopping, at least as "
+                             "many as the best took (0: never stop early)")
     parser.add_argument("--learning_rate", type=float, default=None,
                         help="the rate after a short warm-up (default: a tenth of the "
                              "bundle's training rate)")

@@ -177,7 +177,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     the final state and the last metrics.
 
     ``train.early_stop_patience`` > 0 ends it once the validation loss has not improved for
-    that many evaluations (:class:`Plateau`; adaptation uses it), and the bundle then keeps
+    that many evaluations (and ``train.early_stop_relative`` times as many as it took to reach
+    the best; :class:`Plateau`, adaptation uses them), and the bundle then keeps
     the weights of the best evaluation (``train.best_step``); a fine-tune from
     ``init_variables`` is evaluated before its first step, so a run that never improves on
     them ships them unchanged.
@@ -224,7 +225,8 @@ def _train(config, workdir, progress, init_variables, command):
         if main_host:
             checkpoints.truncate_metrics(metrics_path, start)
     checkpoints.record_workdir(workdir, config)
-    plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0))
+    plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0),
+                      float(config.train.get("early_stop_relative", 0) or 0))
     fresh_finetune = init_variables is not None and start == 0 and mngr.latest_step() is None
     if plateau.patience and fresh_finetune:
         before = dict(step=0, **evaluate(config, source, state, eval_step, mesh))
@@ -286,24 +288,29 @@ def _train(config, workdir, progress, init_variables, command):
 
 class Plateau:
     """Early stopping: :meth:`reached` is True once the validation loss has not improved on
-    its best for ``patience`` evaluations in a row (never with ``patience`` 0). With
-    ``patience``, the best evaluation's weights are kept (a host copy of ``params`` and
-    ``batch_stats``: ``best_state``, ``best_step``)."""
+    its best for ``patience`` evaluations in a row (never with ``patience`` 0) and, with
+    ``relative`` > 0, for at least ``relative`` times as many evaluations as it took to reach
+    that best — a run that improved late (noisy losses, a long budget) gets as long again to
+    beat it. With ``patience``, the best evaluation's weights are kept (a host copy of
+    ``params`` and ``batch_stats``: ``best_state``, ``best_step``)."""
 
-    def __init__(self, patience: int):
-        self.patience, self.best, self.since = patience, float("inf"), 0
+    def __init__(self, patience: int, relative: float = 0.0):
+        self.patience, self.relative = patience, relative
+        self.best, self.since, self.seen, self.best_seen = float("inf"), 0, 0, 0
         self.best_state, self.best_step = None, None
 
     def reached(self, val_loss: float, state=None, step=None) -> bool:
         if val_loss < self.best:
-            self.best, self.since = val_loss, 0
+            self.best, self.since, self.best_seen = val_loss, 0, self.seen
             if self.patience and state is not None:
                 self.best_step = step
                 self.best_state = jax.device_get(
                     {"params": state["params"], "batch_stats": state["batch_stats"]})
         else:
             self.since += 1
-        return bool(self.patience) and self.since >= self.patience
+        self.seen += 1
+        return bool(self.patience) and self.since >= max(self.patience,
+                                                         self.relative * self.best_seen)
 
 
 def evaluate(config, source, state, eval_step, mesh):

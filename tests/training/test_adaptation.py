@@ -19,6 +19,17 @@ def test_a_plateau_is_patience_evaluations_without_a_better_loss():
     assert not any(never.reached(v) for v in (1.0, 2.0, 3.0, 4.0))
 
 
+def test_a_relative_plateau_waits_as_long_as_the_best_took():
+    # best at the 5th evaluation (4 before it): patience 2 alone stops 2 later, relative 1
+    # only after 4 without a better loss
+    losses = (1.0, 0.9, 0.8, 0.7, 0.6, 0.65, 0.7, 0.62, 0.61, 0.9)
+    fixed, relative = loop.Plateau(2), loop.Plateau(2, relative=1.0)
+    assert [fixed.reached(v) for v in losses].index(True) == 6
+    assert [relative.reached(v) for v in losses].index(True) == 8
+    early = loop.Plateau(2, relative=1.0)          # a best at the start: patience decides
+    assert [early.reached(v) for v in (1.0, 1.1, 1.2)] == [False, False, True]
+
+
 def test_a_plateau_keeps_the_weights_of_its_best_evaluation():
     plateau = loop.Plateau(3)
     for step, v in enumerate((1.0, 0.7, 0.9, 0.8)):
