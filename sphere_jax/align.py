@@ -219,8 +219,8 @@ def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min
                                           screen=screen)
         d_dst, d_src = inputs[("target", "source")]     # p_target = T p_source: (i, j)
     else:
-        describe = methods.descriptor(method, radius, bundles)
-        d_src, d_dst = describe(src), describe(dst)
+        # one stream for both scans: no core idles between them
+        d_src, d_dst = methods.descriptor_of_many(method, radius, bundles)([src, dst])
     lap("descriptors")
     ia, ib = mutual_matches(d_src, d_dst)
     lap("matching")

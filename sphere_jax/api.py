@@ -25,7 +25,8 @@ from sphere_jax import checks
 from sphere_jax import models, paths
 from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
-from sphere_jax.data.supports import MIN_SUPPORT, SupportStream, extract_unit_patches
+from sphere_jax.data.supports import (MIN_SUPPORT, StreamChain, SupportStream,
+                                      extract_unit_patches)
 from sphere_jax.parallel import DEFAULT_CHUNK, run_chunked, stream_chunked
 from sphere_jax.models import flare
 
@@ -99,13 +100,43 @@ class Bundle:
         """LRFs ``[K, 3, 3]`` (Compass or SOUND bundles). ``on_invalid``: what a keypoint with
         fewer than :attr:`min_support` support points gets — ``"raise"`` an error,
         ``"mask"`` NaN rows, the result then being ``(frames, valid [K] bool)``."""
+        return self.orient_clouds([(points, keypoints)], radius, chunk, seed, workers,
+                                  on_invalid)[0]
+
+    def orient_clouds(self, clouds, radius=None, chunk=None, seed=0, workers=None,
+                      on_invalid="raise"):
+        """:meth:`orient` of several clouds ``[(points, keypoints), ...]`` in one stream of
+        chunks, so the cores stay busy from one cloud to the next: a list with each cloud's
+        result, the same as :meth:`orient` gives it alone."""
         self._can("orient")
         checks.choice(on_invalid, "on_invalid", ON_INVALID)
-        stream = self.supports(points, keypoints, radius, seed)
-        stream.check(on_invalid)
-        out = stream_chunked(self._orient_fn, stream.make, stream.n, self._chunk(chunk),
-                             workers)
-        return stream.scatter(out, (3, 3), on_invalid)
+        chain = self._chain(clouds, radius, seed, on_invalid)
+        out = stream_chunked(self._orient_fn, chain.make, chain.n, self._chunk(chunk), workers)
+        return [s.scatter(o, (3, 3), on_invalid) for s, o in zip(chain.streams, chain.split(out))]
+
+    def _chain(self, clouds, radius, seed, on_invalid, frames=None):
+        """The clouds' :class:`SupportStream` chained (:class:`StreamChain`), ``frames``
+        (one ``[K, 3, 3]`` per cloud, or None) attached, each checked for ``on_invalid``."""
+        if isinstance(clouds, (str, bytes, np.ndarray)) or not hasattr(clouds, "__len__") \
+                or not len(clouds) or any(not isinstance(c, (tuple, list)) or len(c) != 2
+                                          for c in clouds):
+            raise checks.InputError("clouds", "a non-empty list of (points, keypoints) pairs",
+                                    checks.shown(clouds))
+        if frames is not None and len(frames) != len(clouds):
+            raise checks.InputError("frames", f"one [K, 3, 3] array per cloud ({len(clouds)})",
+                                    f"{len(frames)}")
+        streams = []
+        for j, (points, keypoints) in enumerate(clouds):
+            stream = self.supports(points, keypoints, radius, seed)
+            if frames is not None:
+                if not self.spec.describe_frames:
+                    raise checks.InputError("frames", f"None for a {self.kind} bundle (it "
+                                            "orients its patches itself)",
+                                            checks.shown(frames[j]))
+                stream.frames = checks.rotations(frames[j], stream.k)
+            stream.check(on_invalid)
+            streams.append(stream)
+        return StreamChain(streams)
 
     def orient_patches(self, patches_KxNx3, chunk=None, workers=None):
         """LRFs ``[K, 3, 3]`` of ready-made unit patches (e.g. whole shapes, see
@@ -127,30 +158,28 @@ class Bundle:
         FLARE; LEAD-PN: the code of the FLARE-oriented patch; SOUND: self-oriented.
         ``on_invalid`` as in :meth:`orient`; ``as_open3d``: an
         ``open3d.pipelines.registration.Feature`` instead (open3d's RANSAC and FGR take it)."""
-        out = self._describe(points, keypoints, radius, chunk, seed, frames, workers,
-                             on_invalid)
+        out = self.describe_clouds([(points, keypoints)], radius, chunk, seed,
+                                   None if frames is None else [frames], workers,
+                                   on_invalid)[0]
         if not as_open3d:
             return out
         if on_invalid == "mask":
             return open3d_feature(out[0]), out[1]
         return open3d_feature(out)
 
-    def _describe(self, points, keypoints, radius, chunk, seed, frames, workers, on_invalid):
+    def describe_clouds(self, clouds, radius=None, chunk=None, seed=0, frames=None,
+                        workers=None, on_invalid="raise"):
+        """:meth:`describe` of several clouds ``[(points, keypoints), ...]`` (``frames``: None
+        or one ``[K, 3, 3]`` per cloud) in one stream of chunks, as :meth:`orient_clouds`."""
         self._can("describe")
         checks.choice(on_invalid, "on_invalid", ON_INVALID)
-        stream = self.supports(points, keypoints, radius, seed)
-        if frames is not None:
-            if not self.spec.describe_frames:
-                raise checks.InputError("frames", f"None for a {self.kind} bundle (it orients "
-                                        "its patches itself)", checks.shown(frames))
-            stream.frames = checks.rotations(frames, stream.k)
-        stream.check(on_invalid)
-        out = stream_chunked(self._describe_fn, stream.make, stream.n, self._chunk(chunk),
+        chain = self._chain(clouds, radius, seed, on_invalid, frames)
+        out = stream_chunked(self._describe_fn, chain.make, chain.n, self._chunk(chunk),
                              workers)
-        if stream.n == 0:                         # nothing to describe: the width still counts
+        if chain.n == 0:                          # nothing to describe: the width still counts
             unit = jax.ShapeDtypeStruct((1, self.config.data.n_points, 3), jnp.float32)
             out = np.zeros((0, *jax.eval_shape(self._describe_fn, unit).shape[1:]))
-        return stream.scatter(out, None, on_invalid)
+        return [s.scatter(o, None, on_invalid) for s, o in zip(chain.streams, chain.split(out))]
 
     # ---- jitted pieces ----------------------------------------------------------------------
 

@@ -76,3 +76,30 @@ def extract_unit_patches(points, keypoints, radius, n_points, seed=0, min_suppor
                            min_support)
     stream.check("raise")
     return stream.make(0, stream.n)[0]
+
+
+class StreamChain:
+    """Several :class:`SupportStream` (one per cloud) as one range of ``n`` rows, so that one
+    chunked run goes from one cloud to the next without draining (no core idles at a cloud's
+    last chunk). Each stream still draws its own rows in order: the patches are those of
+    separate runs."""
+
+    def __init__(self, streams):
+        self.streams = list(streams)
+        self.ends = np.cumsum([s.n for s in self.streams], dtype=np.int64)
+        self.n = int(self.ends[-1]) if len(self.ends) else 0
+
+    def make(self, start, stop):
+        """Inputs of chained rows ``start:stop`` (:meth:`SupportStream.make`)."""
+        parts, begin = [], 0
+        for stream, end in zip(self.streams, self.ends):
+            a, b = max(start, begin), min(stop, int(end))
+            if a < b:
+                parts.append(stream.make(a - begin, b - begin))
+            begin = int(end)
+        return tuple(np.concatenate(p) for p in zip(*parts))
+
+    def split(self, values):
+        """Computed rows ``[n, ...]`` as one array per stream."""
+        return np.split(np.asarray(values), self.ends[:-1]) if self.n else \
+            [np.asarray(values)] * len(self.streams)

@@ -67,11 +67,39 @@ def _masked(values_valid, fill):
 def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     """``describe(fragment) -> [K, D]`` for method ``name`` with support ``radius`` (metres);
     ``bundles`` maps a model kind (lead, compass, lead_pn, sound) to a bundle path."""
+    describe_all = descriptor_of_many(name, radius, bundles, fpfh_radius, chunk)
+    return lambda f: describe_all([f])[0]
+
+
+def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None):
+    """``describe_all([fragment, ...]) -> [[K, D], ...]`` for method ``name``, as
+    :func:`descriptor`: a learned one describes all the fragments in one stream of chunks
+    (:meth:`~sphere_jax.api.Bundle.describe_clouds`), with the values of one at a time."""
     bundles = bundles or {}
     name = registry.resolve(name, ("descriptor",), "name").key
     missing = bundles_needed([name], bundles)
     if missing:
         raise ValueError(f"descriptor {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
+    if name in ("fpfh", "shot", "spin", "usc"):
+        one = _hand_crafted(name, radius, fpfh_radius)
+        return lambda fs: [one(f) for f in fs]
+    if name == "lead_compass":
+        lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
+
+        def describe_all(fs):
+            clouds = [(f.points, f.keypoints) for f in fs]
+            frames = [_masked(o, np.eye(3)) for o in compass.orient_clouds(
+                clouds, radius=radius, chunk=chunk, on_invalid="mask")]
+            return [_masked(d, 0) for d in lead.describe_clouds(
+                clouds, radius=radius, chunk=chunk, frames=frames, on_invalid="mask")]
+        return describe_all
+    model = _bundle(bundles[name])
+    return lambda fs: [_masked(d, 0) for d in model.describe_clouds(
+        [(f.points, f.keypoints) for f in fs], radius=radius, chunk=chunk, on_invalid="mask")]
+
+
+def _hand_crafted(name, radius, fpfh_radius):
+    """``describe(fragment)`` of a hand-crafted descriptor on the exact supports."""
     if name == "fpfh":
         r = fpfh_radius or radius / 2
         return lambda f: descriptors.fpfh(f.points, f.normals, f.keypoints, r)
@@ -80,21 +108,8 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     if name == "spin":
         return lambda f: descriptors.spin_image(neighbourhoods(f, f.keypoints, radius),
                                                 f.normals[f.keypoints])
-    if name == "usc":
-        return lambda f: descriptors.usc(neighbourhoods(f, f.keypoints, radius), f.points,
-                                         tree=f.tree)
-    if name == "lead_compass":
-        lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
-
-        def describe(f):
-            frames = _masked(compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                            on_invalid="mask"), np.eye(3))
-            return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                         frames=frames, on_invalid="mask"), 0)
-        return describe
-    model = _bundle(bundles[name])
-    return lambda f: _masked(model.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                            on_invalid="mask"), 0)
+    return lambda f: descriptors.usc(neighbourhoods(f, f.keypoints, radius), f.points,
+                                     tree=f.tree)
 
 
 @dataclasses.dataclass(frozen=True)
