@@ -122,9 +122,10 @@ class Bundle:
                                           for c in clouds):
             raise checks.InputError("clouds", "a non-empty list of (points, keypoints) pairs",
                                     checks.shown(clouds))
-        if frames is not None and len(frames) != len(clouds):
-            raise checks.InputError("frames", f"one [K, 3, 3] array per cloud ({len(clouds)})",
-                                    f"{len(frames)}")
+        if frames is not None and (not isinstance(frames, (tuple, list))
+                                   or len(frames) != len(clouds)):
+            raise checks.InputError("frames", f"a list of one [K, 3, 3] array per cloud "
+                                    f"({len(clouds)})", checks.shown(frames))
         streams = []
         for j, (points, keypoints) in enumerate(clouds):
             stream = self.supports(points, keypoints, radius, seed)

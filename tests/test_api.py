@@ -101,6 +101,17 @@ def test_api_refuses_bad_arguments_before_any_work(sound_bundle, kwargs, message
             call(str(sound_bundle), **args)
 
 
+def test_several_clouds_are_a_list_of_pairs_with_one_result_each(sound_bundle):
+    bundle = api.load_bundle(sound_bundle)
+    for bad in (CLOUD, [], [CLOUD], [(CLOUD, np.arange(4), None)]):
+        with pytest.raises(sphere_jax.SphereJaxError, match="clouds must be a non-empty list"):
+            bundle.orient_clouds(bad)
+    with pytest.raises(sphere_jax.SphereJaxError, match="frames must be a list of one"):
+        api.load_bundle("lead").describe_clouds([(CLOUD, np.arange(4))], frames=np.eye(3))
+    two = bundle.orient_clouds([(CLOUD, np.arange(4)), (CLOUD[::2], np.arange(3))])
+    assert [f.shape for f in two] == [(4, 3, 3), (3, 3, 3)]
+
+
 def test_too_small_supports_are_reported_never_described(sound_bundle):
     bundle = api.load_bundle(sound_bundle)
     lonely = np.concatenate([CLOUD, [[5, 5, 5], [5.01, 5, 5]]]).astype(np.float32)
