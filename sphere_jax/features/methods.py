@@ -80,7 +80,7 @@ def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None)
     missing = bundles_needed([name], bundles)
     if missing:
         raise ValueError(f"descriptor {name!r} needs bundle(s) {BUNDLE_OF[name]} in 'bundles'")
-    if name in ("fpfh", "shot", "spin", "usc"):
+    if name not in BUNDLE_OF:                    # hand-crafted: no network, one at a time
         one = _hand_crafted(name, radius, fpfh_radius)
         return lambda fs: [one(f) for f in fs]
     if name == "lead_compass":
