@@ -6,6 +6,9 @@ import sys
 
 import pytest
 
+# Every case starts a fresh interpreter (JAX, flax, open3d): ~5 s each.
+pytestmark = pytest.mark.slow
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

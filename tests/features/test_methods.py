@@ -16,6 +16,7 @@ def moved_pair():
     return _fixtures.moved_pair()
 
 
+@pytest.mark.slow
 def test_fragments_in_one_stream_describe_as_one_at_a_time(moved_pair):
     """LEAD in Compass's frames of two fragments, chained so that chunks straddle them (13
     patches each, 48 + 48 keypoints, a too-small support masked in the second), equal each
@@ -46,6 +47,7 @@ def test_shot_gt_bins_both_scans_of_a_pair_alike(moved_pair):
     assert same < 0.02 and other > 0.3
 
 
+@pytest.mark.slow
 def test_lead_gt_gives_corresponding_patches_one_pose(moved_pair):
     """LEAD's maps of the moved scan, turned by the ground truth, equal the scan's own up to
     the patch resampling (the two clouds' KD-trees list neighbours in different orders) and

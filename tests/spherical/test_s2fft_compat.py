@@ -7,6 +7,8 @@ import pytest
 from experiments.benchmarks import peers
 
 pytest.importorskip("s2fft")
+# Each case builds s2fft's precomputed kernels: half a minute per file.
+pytestmark = pytest.mark.slow
 
 
 @pytest.mark.parametrize("transform", ["s2_forward", "s2_inverse", "so3_forward",

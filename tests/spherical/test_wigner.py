@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from sphere_jax.spherical import so3, wigner
 from tests import reference
@@ -13,6 +14,7 @@ def test_tables_match_closed_form_at_small_degrees():
     assert abs(wigner.wigner_d(1, 0.7)[2, 1] + np.sin(0.7) / np.sqrt(2)) < 1e-14
 
 
+@pytest.mark.slow
 def test_stable_and_orthogonal_up_to_bandwidth_64():
     for l in [40, 63]:
         d = wigner.wigner_d(l, np.array([0.1, 1.3, 3.0]))
