@@ -210,7 +210,10 @@ def open3d_feature(desc_KxD):
 def bundle_path(name_or_path) -> str:
     """A bundle folder, or the shipped bundle of a model kind (``'lead'``, ``'compass'``,
     ``'lead_pn'``, ``'sound'``, ``'compass_shapes'``; :data:`sphere_jax.paths.SHIPPED`)."""
-    name = str(name_or_path)
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise checks.InputError("bundle", f"a bundle folder or one of {', '.join(paths.SHIPPED)}",
+                                checks.shown(name_or_path))
+    name = os.fspath(name_or_path)
     if name in paths.SHIPPED and not os.path.isdir(name):
         return paths.shipped_bundle(name, required=True)
     return name

@@ -33,6 +33,8 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
         bundle.orient(np.concatenate([cloud, [[9.0, 9.0, 9.0]]]), [3000], radius=0.5)
     with pytest.raises(sphere_jax.SphereJaxError, match="not a bundle"):
         api.load_bundle(tmp_path)
+    with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be a bundle folder or one"):
+        api.load_bundle(None)
     from sphere_jax import paths
     for kind in paths.SHIPPED:                  # shipped bundles by kind: the same folder
         assert api.bundle_path(kind) == paths.shipped_bundle(kind, required=True)

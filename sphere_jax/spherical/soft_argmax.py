@@ -38,6 +38,12 @@ def soft_argmax_indices(x_JxAxG, temperature=1.0, window=None):
     if x_JxAxG.ndim != 3:
         raise ValueError(f"x_JxAxG must be one SO(3) map [2B, 2B, 2B], got {x_JxAxG.shape}; "
                          f"vmap over batches")
+    # Concrete maps only (under jit the check would need a callback): a NaN map has no peak,
+    # and argmax would pick one anyway.
+    if not isinstance(x_JxAxG, jax.core.Tracer):
+        bad = int(np.size(x_JxAxG) - np.isfinite(np.asarray(x_JxAxG)).sum())
+        if bad:
+            raise ValueError(f"x_JxAxG must be finite; got {bad} non-finite value(s)")
     h = float(b if window is None else window)
     n = 2 * b
     x = jnp.asarray(x_JxAxG, jnp.float32)

@@ -54,3 +54,7 @@ def test_gradients_are_finite_and_move_the_estimate():
 def test_bad_input():
     with pytest.raises(ValueError, match="one SO\\(3\\) map"):
         soft_argmax.soft_argmax_indices(jnp.zeros((2, 8, 8, 8)))
+    x = np.zeros((8, 8, 8), np.float32)
+    x[1, 2, 3] = np.nan
+    with pytest.raises(ValueError, match="must be finite; got 1 non-finite"):
+        soft_argmax.soft_argmax_rotation(x)
