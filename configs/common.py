@@ -8,7 +8,8 @@ from sphere_jax import checks
 # 'mid' sits between: the seed's ablation (Table 4.5) kept 0.922 of the best LEAD recall with
 # three SO(3) layers at input bandwidths 12, 8, 6 (its configuration F) at 0.64 of the time, and
 # a repeatable frame needs finer cells than B = 8's 22.5° (both axes within 14° at rho = 0.97),
-# so Compass decides at B = 12 (15° cells, refined by the soft-argmax).
+# so Compass decides at B = 12 (15° cells, refined by the soft-argmax): deciding at B = 8 halves
+# its time and loses 22 % of its repeatability (docs/performance.md).
 SIZES = ("paper", "mid", "small", "tiny")
 
 # Inference chunk of the B = 24 'paper' Compass and SOUND: their SO(3) spectra take ~40 MB per
