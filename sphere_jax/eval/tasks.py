@@ -64,10 +64,15 @@ def run(config, workdir, progress=True, command=None):
 
 
 def bundles_used(config):
-    """Kind -> ``{'path', 'steps_done'}`` of the bundles an evaluation config names."""
-    from sphere_jax import api, paths
+    """Kind -> ``{'path', 'steps_done', 'fingerprint'}`` of the bundles an evaluation config
+    names (the classification's whole-shape Compass as ``compass_shapes``)."""
+    from sphere_jax import api
     out = {}
     if "bundles" not in config:
+        shapes = config.get("compass_bundle")
+        uses = any("compass" in m for m in str(config.get("methods", "")).split(","))
+        if shapes and uses and bundle.is_bundle(api.bundle_path(shapes)):
+            out["compass_shapes"] = _record(api.bundle_path(shapes))
         return out
     chosen = bundle_paths(config)
     names = [_key(m) for m in str(config.get("methods", "")).split(",") if m.strip()]
@@ -77,11 +82,16 @@ def bundles_used(config):
     for kind, path in sorted(chosen.items()):
         path = api.bundle_path(path) if path else path
         if path and bundle.is_bundle(path):
-            inside = not paths.relative(path).startswith("..")
-            out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
-                         "steps_done": bundle.steps_done(bundle.read_config(path)),
-                         "fingerprint": bundle.fingerprint(path)}
+            out[kind] = _record(path)
     return out
+
+
+def _record(path):
+    from sphere_jax import paths
+    inside = not paths.relative(path).startswith("..")
+    return {"path": paths.relative(path) if inside else paths.portable(path),
+            "steps_done": bundle.steps_done(bundle.read_config(path)),
+            "fingerprint": bundle.fingerprint(path)}
 
 
 def bundle_paths(config):

@@ -1,0 +1,18 @@
+"""The run record of an evaluation names the bundles its methods used, which the published
+tables are stamped with."""
+from configs import eval_classification, eval_registration
+from sphere_jax import paths
+from sphere_jax.eval import tasks
+
+
+def test_run_record_names_the_bundles_the_methods_use():
+    c = eval_registration.get_config("quick")
+    c.methods = "fpfh,lead_compass"
+    used = tasks.bundles_used(c)
+    assert sorted(used) == ["compass", "lead"]
+    assert used["lead"]["path"] == paths.relative(paths.shipped_bundle("lead"))
+    assert used["lead"]["steps_done"] > 0 and len(used["lead"]["fingerprint"]) == 16
+    c = eval_classification.get_config("small")           # the whole-shape Compass
+    assert sorted(tasks.bundles_used(c)) == ["compass_shapes"]
+    c.methods = "pointnet"
+    assert tasks.bundles_used(c) == {}
