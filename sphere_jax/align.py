@@ -34,8 +34,8 @@ TRAIN_VOXEL, TRAIN_RADIUS = 0.02, 0.30      # the shipped bundles' data.voxel an
 FRAGMENT_SIDE = 2.1                         # middle bounding-box side of a 3DMatch fragment, m
 DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descriptor (README)
 # Per cloud: the fewest that keep LEAD-PN's registration recall on the 27 redkitchen pairs
-# (2500: 20/27, 5000: 19/27, 1000: 17/27; docs/performance.md) at half the time of 5000.
-DEFAULT_KEYPOINTS = 2500
+# (5000: 23/27, 2500: 19/27, 1000: 19/27; the low-overlap pairs gain, docs/performance.md).
+DEFAULT_KEYPOINTS = 5000
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
