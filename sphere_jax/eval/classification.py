@@ -64,12 +64,23 @@ def method_config(config, method):
     return c
 
 
+def _method_dirs(config, workdir):
+    """``(method, its training workdir)`` for each method of ``config``."""
+    return [(m.strip(), os.path.join(workdir, m.strip().replace("+", "_")))
+            for m in config.methods.split(",") if m.strip()]
+
+
+def kept(workdir, config) -> int:
+    """How many methods' classifiers an earlier run left in ``workdir`` (trained, or to resume
+    from a checkpoint): a run then is not timed from scratch (tasks.run's record)."""
+    return sum(os.path.isdir(sub) for _, sub in _method_dirs(config, workdir))
+
+
 def run(config, workdir, progress=True):
     """Train every method, score NR and AR; writes classification.csv / .md. Returns rows."""
     rows = []
-    for method in [m.strip() for m in config.methods.split(",") if m.strip()]:
+    for method, sub in _method_dirs(config, workdir):
         c = method_config(config, method)
-        sub = os.path.join(workdir, method.replace("+", "_"))
         training.train_and_evaluate(c, sub, progress)
         bundle = api.load_bundle(os.path.join(sub, "bundle"))
         source = training.build_source(c)
@@ -80,6 +91,10 @@ def run(config, workdir, progress=True):
         for split, x in (("NR", pts), ("AR", rotated.astype(np.float32))):
             rows.append({"method": method, "split": split,
                          "accuracy": accuracy(bundle, x, labels, orient)})
-    md = report.pivot_table(rows, "method", "split", "accuracy", cols=("NR", "AR")) + "\n"
+    n_test = len(labels) if rows else 0
+    md = ("# Rotation-invariant classification\n\n"
+          f"**Accuracy on {n_test} test shapes: NR in canonical pose, AR each turned by a seeded "
+          f"random rotation (both trained in canonical pose)**\n\n"
+          + report.pivot_table(rows, "method", "split", "accuracy", cols=("NR", "AR")) + "\n")
     return rows, report.write(workdir, "classification", rows, ("method", "split", "accuracy"),
                               md)

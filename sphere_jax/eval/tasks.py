@@ -49,8 +49,11 @@ def run(config, workdir, progress=True, command=None):
     checks.config_values(config)
     start = time.perf_counter()
     # Results kept by an interrupted run (eval/resume.py): its wall time is not this run's.
-    resumed = resume.kept(workdir, config,
-                          bundle_paths(config) if "bundles" in config else {}) > 0
+    if hasattr(module, "kept"):                   # a task that keeps its own kind of work
+        resumed = module.kept(workdir, config) > 0
+    else:
+        resumed = resume.kept(workdir, config,
+                              bundle_paths(config) if "bundles" in config else {}) > 0
     import jax
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
         rows, md = module.run(config, workdir, progress)

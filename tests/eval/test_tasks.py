@@ -16,3 +16,11 @@ def test_run_record_names_the_bundles_the_methods_use():
     assert sorted(tasks.bundles_used(c)) == ["compass_shapes"]
     c.methods = "pointnet"
     assert tasks.bundles_used(c) == {}
+
+
+def test_a_classification_that_finds_its_classifiers_counts_as_resumed(tmp_path):
+    from sphere_jax.eval import classification
+    c = eval_classification.get_config("small")
+    assert classification.kept(tmp_path, c) == 0
+    (tmp_path / "compass_pointnet").mkdir()              # a trained or interrupted classifier
+    assert classification.kept(tmp_path, c) == 1
