@@ -64,10 +64,21 @@ def method_config(config, method):
     return c
 
 
+def _methods(config):
+    return [m.strip() for m in config.methods.split(",") if m.strip()]
+
+
 def _method_dirs(config, workdir):
     """``(method, its training workdir)`` for each method of ``config``."""
-    return [(m.strip(), os.path.join(workdir, m.strip().replace("+", "_")))
-            for m in config.methods.split(",") if m.strip()]
+    return [(m, os.path.join(workdir, m.replace("+", "_"))) for m in _methods(config)]
+
+
+def bundles(config) -> dict:
+    """Kind -> path of the bundles the methods use (the run record's): the whole-shape
+    Compass of ``compass+pointnet``."""
+    if "compass+pointnet" not in _methods(config):
+        return {}
+    return {"compass_shapes": config.compass_bundle}
 
 
 def kept(workdir, config) -> int:

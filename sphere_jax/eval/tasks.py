@@ -69,32 +69,25 @@ def run(config, workdir, progress=True, command=None):
 def bundles_used(config):
     """Kind -> ``{'path', 'steps_done', 'fingerprint'}`` of the bundles an evaluation config
     names (the classification's whole-shape Compass as ``compass_shapes``)."""
-    from sphere_jax import api
+    from sphere_jax import api, paths
     out = {}
-    if "bundles" not in config:
-        shapes = config.get("compass_bundle")
-        uses = any("compass" in m for m in str(config.get("methods", "")).split(","))
-        if shapes and uses and bundle.is_bundle(api.bundle_path(shapes)):
-            out["compass_shapes"] = _record(api.bundle_path(shapes))
-        return out
-    chosen = bundle_paths(config)
-    names = [_key(m) for m in str(config.get("methods", "")).split(",") if m.strip()]
-    if names:                                         # only the kinds the methods use
-        needed = {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
-        chosen = {k: v for k, v in chosen.items() if k in needed}
+    if "bundles" in config:
+        chosen = bundle_paths(config)
+        names = [_key(m) for m in str(config.get("methods", "")).split(",") if m.strip()]
+        if names:                                     # only the kinds the methods use
+            needed = {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
+            chosen = {k: v for k, v in chosen.items() if k in needed}
+    else:                                             # a task that names its own bundles
+        module = task_module(config.task)
+        chosen = module.bundles(config) if hasattr(module, "bundles") else {}
     for kind, path in sorted(chosen.items()):
         path = api.bundle_path(path) if path else path
         if path and bundle.is_bundle(path):
-            out[kind] = _record(path)
+            inside = not paths.relative(path).startswith("..")
+            out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
+                         "steps_done": bundle.steps_done(bundle.read_config(path)),
+                         "fingerprint": bundle.fingerprint(path)}
     return out
-
-
-def _record(path):
-    from sphere_jax import paths
-    inside = not paths.relative(path).startswith("..")
-    return {"path": paths.relative(path) if inside else paths.portable(path),
-            "steps_done": bundle.steps_done(bundle.read_config(path)),
-            "fingerprint": bundle.fingerprint(path)}
 
 
 def bundle_paths(config):
