@@ -65,7 +65,12 @@ def main(argv=None):
     from sphere_jax import workdirs
     from sphere_jax.data.readers import io
     with cli.refusals(arguments=True):
-        source, target = io.read_points(args.source).points, io.read_points(args.target).points
+        clouds = io.read_points(args.source), io.read_points(args.target)
+        source, target = (c.points for c in clouds)
+        for path, cloud in zip((args.source, args.target), clouds):
+            if cloud.dropped:
+                print(f"{path}: {cloud.dropped} of {cloud.dropped + len(cloud)} points have "
+                      f"non-finite coordinates; left out", file=sys.stderr)
         if args.bundle is not None:
             from sphere_jax import api
             api.load_bundle(args.bundle)

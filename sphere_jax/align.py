@@ -75,10 +75,11 @@ class Registration:
         t = "\n".join("  " + " ".join(f"{v: .6f}" for v in row) for row in self.transform)
         times = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items())
         status = "registered" if self.ok else f"FAILED: {self.reason}"
+        icp = (f"ICP fitness {self.fitness:.3f}, RMSE {self.rmse:.4g}"
+               if np.isfinite(self.fitness) else "no ICP")
         return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "
-                f"{self.matches} mutual "
-                f"matches, {self.inliers} RANSAC inliers; ICP fitness {self.fitness:.3f}, RMSE "
-                f"{self.rmse:.4g}\nvoxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}")
+                f"{self.matches} mutual matches, {self.inliers} RANSAC inliers; {icp}\n"
+                f"voxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}")
 
 
 def middle_side(points_Nx3) -> float:

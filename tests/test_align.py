@@ -65,11 +65,12 @@ def test_auto_scale_follows_extent_and_spacing():
 def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
     (src, dst), t_gt = pair
     io.write_ply(tmp_path / "src.ply", src)
-    np.save(tmp_path / "dst.npy", dst)
+    np.save(tmp_path / "dst.npy", np.concatenate([dst, np.full((7, 3), np.nan)]))
     out = tmp_path / "out"
     register_cli.main([str(tmp_path / "src.ply"), str(tmp_path / "dst.npy"), "--method=fpfh",
                        "--keypoints=2500", f"--out={out}"])
-    printed = capsys.readouterr().out
+    printed, said = capsys.readouterr()
+    assert f"dst.npy: 7 of {len(dst) + 7} points have non-finite coordinates" in said
     assert "p_target = T · p_source" in printed
     assert f"voxel {align.auto_scale(src, dst)[0]:.4g}" in printed
     t = np.loadtxt(out / "transform.txt")

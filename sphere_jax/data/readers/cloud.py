@@ -14,11 +14,13 @@ from sphere_jax.checks import DataError  # noqa: F401  (the readers' error, re-e
 @dataclasses.dataclass
 class Cloud:
     """Points ``[N, 3]`` float32, with optional normals ``[N, 3]``, colours ``[N, 3]`` in [0, 1]
-    (float32) and, for meshes, triangles ``[F, 3]`` int32."""
+    (float32) and, for meshes, triangles ``[F, 3]`` int32. ``dropped``: rows of the file left
+    out for non-finite coordinates (organised scans mark missing returns that way)."""
     points: np.ndarray
     normals: np.ndarray | None = None
     colors: np.ndarray | None = None
     faces: np.ndarray | None = None
+    dropped: int = 0
 
     def __len__(self):
         return len(self.points)
@@ -48,9 +50,11 @@ def parse_numbers(path, line, no, count=None):
 
 def finite_cloud(path, points, normals=None, colors=None, faces=None):
     points = np.asarray(points, np.float32)
+    dropped = 0
     if faces is None:
         keep = np.all(np.isfinite(points), axis=1)
-        if not keep.all():
+        dropped = int((~keep).sum())
+        if dropped:
             points = points[keep]
             normals = None if normals is None else normals[keep]
             colors = None if colors is None else colors[keep]
@@ -60,7 +64,7 @@ def finite_cloud(path, points, normals=None, colors=None, faces=None):
         raise DataError(path, "no finite points")
     as32 = lambda a: None if a is None else np.asarray(a, np.float32)
     return Cloud(points, as32(normals), as32(colors),
-                 None if faces is None else np.asarray(faces, np.int32))
+                 None if faces is None else np.asarray(faces, np.int32), dropped)
 
 
 def triangulate(path, polys, n_vertices):

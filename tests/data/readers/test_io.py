@@ -47,7 +47,8 @@ def test_ply_pcd_round_trips(tmp_path):
     (tmp_path / "b.pcd").write_text(
         "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
         "POINTS 2\nDATA ascii\n1 2 3\nnan nan nan\n")
-    assert io.read_pcd(tmp_path / "b.pcd").points.tolist() == [[1, 2, 3]]   # NaN row dropped
+    back = io.read_pcd(tmp_path / "b.pcd")
+    assert back.points.tolist() == [[1, 2, 3]] and back.dropped == 1   # NaN row dropped, counted
 
 
 def _write(tmp_path, name, data):
