@@ -57,6 +57,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
     with cli.refusals(arguments=True):
+        for name in ("minutes", "steps"):
+            checks.positive(getattr(args, name), name, integer=name == "steps")
         bundle = api.load_bundle(args.bundle)
         data = auto_data(bundle, args.data, args.voxel, args.radius)
         workdirs.prepare(args.workdir, "--workdir")

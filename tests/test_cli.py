@@ -30,6 +30,13 @@ def run(*args, cwd=ROOT):
      "config.train.learning_rate must be a finite number > 0; got nan"),
     (["experiments.evaluate", "--config=eval_registration", "--config.data.max_pairs=-1"],
      "evaluate: error: config.data.max_pairs must be an integer >= 0 (0: every pair); got -1"),
+    (["experiments.train", "--config=lead:tiny", "--config.data.root=embedded:1,/nonexistent"],
+     "train: error: config.data.root must be comma-separated scan files or folders"),
+    (["experiments.evaluate", "--config=eval_registration", "--config.methods=lead,foo"],
+     "evaluate: error: config.methods must be a comma-separated list of fpfh, "),
+    (["experiments.evaluate", "--config=eval_registration", "--config.methods=lead",
+      "--config.bundles.lead=/tmp"],
+     "evaluate: error: config.bundles.lead must be a bundle folder (with config.json)"),
     (["experiments.bench", "--suite=nope"], "bench: error: flag --suite=nope: value should be"),
 ])
 def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
@@ -44,6 +51,8 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     (["experiments.adapt", "--bundle=nope", "--data=x"], "adapt: error: bundle "),
     (["experiments.adapt", "--bundle=lead", "--data=/nonexistent"],
      "adapt: error: data root '/nonexistent' is neither a scan file nor a folder"),
+    (["experiments.adapt", "--bundle=lead", "--data=.", "--minutes=0"],
+     "adapt: error: minutes must be a positive finite number; got 0.0"),
     (["experiments.adapt", "--bundle=lead"], "adapt: error: the following arguments are "
                                              "required: --data"),
     (["experiments.register", "/nonexistent.ply", "b.ply"], "register: error: "

@@ -24,6 +24,8 @@ from sphere_jax.data.readers import rgbd
 from sphere_jax.eval import labelled, registration, report
 from sphere_jax.eval.objects import hsv_histogram
 
+METHODS = ("ransac", "fgr")                 # the coarse registration (open3d)
+
 
 @dataclasses.dataclass
 class ObjectModel:
@@ -99,7 +101,7 @@ def global_registration(src, src_fpfh, dst, dst_fpfh, voxel, method="ransac", se
             src, dst, src_fpfh, dst_fpfh,
             reg.FastGlobalRegistrationOption(maximum_correspondence_distance=dist))
     if method != "ransac":
-        raise ValueError(f"method must be 'ransac' or 'fgr', got {method!r}")
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     o3d.utility.random.seed(int(seed))
     return reg.registration_ransac_based_on_feature_matching(
         src, dst, src_fpfh, dst_fpfh, True, dist, reg.TransformationEstimationPointToPoint(False),

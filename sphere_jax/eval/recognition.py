@@ -29,6 +29,7 @@ from sphere_jax.eval.saliency import salient_mask, spectral_residual
 from sphere_jax.features import methods as method_lib
 from sphere_jax.registration.estimation import kabsch
 
+METHODS = method_lib.DESCRIPTORS
 IOU_OK = 0.25
 
 
@@ -214,7 +215,7 @@ def run(config, workdir, progress=True):
         test_frames = test_frames[:d.max_frames]
     database = build_database(model_frames, config.leaf, d.voxel)
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, method_lib.DESCRIPTORS, bundles)
+    names = tasks.chosen_methods(config, METHODS, bundles)
     describers = {m: method_lib.descriptor(m, d.radius, bundles, d.radius / 2, config.chunk)
                   for m in names}
     rows, curves = evaluate(test_frames, database, describers, config.leaf, d.voxel,

@@ -35,6 +35,8 @@ from sphere_jax.registration.matching import mutual_matches
 from sphere_jax.registration.vote import HYPOTHESES, VotedFrames
 from sphere_jax.spherical import so3
 
+METHODS = method_lib.DESCRIPTORS + method_lib.VOTED + method_lib.GROUND_TRUTH
+
 TAU1, TAU2 = 0.10, 0.05
 RRE_OK_DEG, RTE_OK_M = 15.0, 0.30      # RTE_OK_M: 3DMatch's; runs pass their support radius
 
@@ -234,8 +236,7 @@ def run(config, workdir, progress=True):
     fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the
     processes and process 0 writes the tables (:mod:`processes`)."""
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, method_lib.DESCRIPTORS + method_lib.VOTED +
-                                 method_lib.GROUND_TRUTH, bundles)
+    names = tasks.chosen_methods(config, METHODS, bundles)
     describers = {m: _describer(m, config, bundles) for m in names}
     finished = resume.Finished(workdir, config, bundles, primary=jax.process_index() == 0)
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,

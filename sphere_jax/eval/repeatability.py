@@ -22,6 +22,7 @@ from sphere_jax.features import methods as method_lib
 from sphere_jax.spherical import so3
 from sphere_jax.training import adaptation
 
+METHODS = method_lib.LRFS
 RHO = 0.97
 
 
@@ -139,7 +140,7 @@ def run(config, workdir, progress=True):
     and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir`` (scenes split over the
     processes of a ``jax.distributed`` run, :mod:`processes`)."""
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, method_lib.LRFS, bundles)
+    names = tasks.chosen_methods(config, METHODS, bundles)
     os.makedirs(workdir, exist_ok=True)
     if config.adapt_steps:
         bundles = adapted_bundles(config, bundles, names, workdir, progress)

@@ -47,6 +47,8 @@ def run(config, workdir, progress=True, command=None):
     the date and the wall time (``experiments.publish`` stamps the docs' tables with it)."""
     module = task_module(config.task)
     checks.config_values(config)
+    if hasattr(module, "METHODS"):                # names and bundles, before any work
+        check_bundles(config, method_names(config, module.METHODS))
     start = time.perf_counter()
     # Results kept by an interrupted run (eval/resume.py): its wall time is not this run's.
     if hasattr(module, "kept"):                   # a task that keeps its own kind of work
@@ -95,9 +97,24 @@ def bundle_paths(config):
     paths = dict(config.bundles.to_dict())
     if config.bundle:
         if not bundle.is_bundle(config.bundle):
-            raise FileNotFoundError(f"bundle={config.bundle!r} is not a bundle (no config.json)")
+            raise checks.ConfigError("config.bundle", "a bundle folder (with config.json)",
+                                     config.bundle)
         paths[bundle.read_config(config.bundle).model] = config.bundle
     return paths
+
+
+def check_bundles(config, names):
+    """:class:`~sphere_jax.checks.ConfigError` naming a bundle field of ``config`` that the
+    methods ``names`` need and that is not a bundle folder."""
+    if "bundles" not in config:
+        return
+    from sphere_jax import api
+    chosen = bundle_paths(config)
+    for kind in sorted({k for m in names for k in methods.BUNDLE_OF.get(m, ())}):
+        path = chosen.get(kind)
+        if path and not bundle.is_bundle(api.bundle_path(path)):
+            raise checks.ConfigError(f"config.bundles.{kind}",
+                                     "a bundle folder (with config.json)", path)
 
 
 def _key(name):
@@ -110,18 +127,27 @@ def _key(name):
         return name
 
 
-def chosen_methods(config, known, bundles):
-    """The keys of the methods ``config.methods`` names (grammar names or keys, each one of
-    ``known``); those whose bundle is missing from ``bundles`` are skipped with a warning."""
+def method_names(config, known):
+    """The keys of the methods ``config.methods`` names (grammar names or keys);
+    :class:`~sphere_jax.checks.ConfigError` unless each is one of ``known``."""
     names = [_key(m) for m in config.methods.split(",") if m.strip()]
     bad = [m for m in names if m not in known]
-    if bad:
-        raise ValueError(f"methods {bad} unknown; choose from {', '.join(known)}")
+    if bad or not names:
+        raise checks.ConfigError(
+            "config.methods", f"a comma-separated list of {', '.join(known)}"
+            + (f" ({', '.join(bad)} unknown)" if bad else ""), config.methods)
+    return names
+
+
+def chosen_methods(config, known, bundles):
+    """:func:`method_names`, less those whose bundle is missing from ``bundles`` (skipped with
+    a warning)."""
+    names = method_names(config, known)
     missing = methods.bundles_needed(names, bundles)
     for m in missing:
         warnings.warn(f"method {m!r} skipped: no bundle for {methods.BUNDLE_OF[m]} "
                       f"(set --config.bundle or --config.bundles.<kind>)", stacklevel=2)
     names = [m for m in names if m not in missing]
     if not names:
-        raise ValueError("no method left to evaluate")
+        raise checks.ConfigError("config.methods", "methods whose bundles are set", config.methods)
     return names

@@ -1,10 +1,27 @@
 """The training data of a config: its source of patches or shapes, and the batch of a step."""
 from __future__ import annotations
 
+import os
 
-from sphere_jax import api, bundle, models
+from sphere_jax import api, bundle, checks, models
 from sphere_jax.data import evaluation_scenes, pipeline
 from sphere_jax.data.generators import synthetic
+
+
+def check_roots(config):
+    """What can be refused in ``config.data.root`` before any data is read or made: an entry
+    that does not exist, one that names an evaluation scene
+    (:class:`~sphere_jax.checks.ConfigError`)."""
+    d = config.data
+    if models.spec(config.model).labelled or d.get("shapes", False):
+        return
+    entries = pipeline.root_entries(d.root)
+    for entry in entries:
+        if not entry.startswith("embedded") and not os.path.exists(pipeline.entry_path(entry)):
+            raise checks.ConfigError("config.data.root", "comma-separated scan files or "
+                                     "folders, 'embedded:N' or 'shared/<path>'", entry)
+    evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries],
+                                           bool(d.get("allow_evaluation_scenes", False)))
 
 
 def build_source(config):
@@ -17,10 +34,8 @@ def build_source(config):
         return pipeline.ShapeSource(root, d.n_points, config.seed,
                                     d.get("holdout_every", 0))
     allow = bool(d.get("allow_evaluation_scenes", False))
-    # The entries first (before an RGB-D sequence is fused), then every scan and its origin.
-    evaluation_scenes.check_training_scans(
-        [pipeline.entry_path(e) for e in pipeline.root_entries(d.root)], allow)
-    groups = pipeline.scan_groups(d.root)
+    check_roots(config)              # the entries first (before an RGB-D sequence is fused),
+    groups = pipeline.scan_groups(d.root)        # then every scan and its origin
     scans = [p for g in groups for p in g]
     evaluation_scenes.check_training_scans(
         scans + [pipeline.scan_folder_label(p) for p in scans], allow)

@@ -27,7 +27,7 @@ from tqdm import tqdm
 from sphere_jax import bundle, checks, model_card, models, parallel, workdirs
 from sphere_jax.data.prefetch import Prefetch
 from sphere_jax.training import checkpoints
-from sphere_jax.training.inputs import build_source, get_batch
+from sphere_jax.training.inputs import build_source, check_roots, get_batch
 
 
 # ----------------------------------------------------------------------------------------------
@@ -188,6 +188,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`)."""
     checks.config_values(config)
     learning_rate_schedule(config.train)                # a bad schedule fails before any work
+    check_roots(config)                                 # so does a data root that is not there
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
         return _train(config, workdir, progress, init_variables, command)
 
