@@ -136,13 +136,20 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``), else a temporary
         folder does.
     """
-    method = registry.resolve(method, ("descriptor", "voted")).key
+    chosen = registry.resolve(method, ("descriptor", "voted"))
+    method = chosen.key
     source, target = (_points(x, name) for x, name in ((source, "source"), (target, "target")))
     auto_voxel, auto_radius = (auto_scale(source, target) if "auto" in (voxel, radius)
                                else (None, None))
     voxel = auto_voxel if voxel == "auto" else checks.positive(voxel, "voxel")
     radius = auto_radius if radius == "auto" else checks.positive(radius, "radius")
     n_keypoints = checks.positive(n_keypoints, "n_keypoints", integer=True)
+    seed = checks.non_negative(seed, "seed", integer=True)
+    bundles = method_bundles(chosen, bundle)
+    adapt = None if adapt is None else checks.positive(adapt, "adapt")
+    if adapt and not chosen.learned:
+        raise checks.InputError("adapt", "used with a learned method",
+                                f"method {method!r}, which has no network to adapt")
     seconds, t0 = {}, time.perf_counter()
 
     def lap(stage):
@@ -167,18 +174,30 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if few:
         return fail(reason="too few points on the voxel grid: " + ", ".join(
             f"{n} has {k} at voxel {voxel:.4g}" for n, k in few) + f" (at least {MIN_POINTS})")
-    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
-    if bundle is not None:
-        from sphere_jax import api
-        bundles[api.load_bundle(bundle).kind] = api.bundle_path(bundle)
     with contextlib.ExitStack() as stack:        # a temporary folder lives while it is used
         if adapt:
             folder = adapt_workdir or stack.enter_context(tempfile.TemporaryDirectory())
-            bundles = adapted_bundles(method, bundles, source, target, voxel, radius,
-                                      checks.positive(adapt, "adapt"), folder)
+            bundles = adapted_bundles(method, bundles, source, target, voxel, radius, adapt,
+                                      folder)
             lap("adaptation")
         return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
                       min_fitness, seconds, lap, fail)
+
+
+def method_bundles(method: registry.Method, bundle=None):
+    """Kind -> bundle path for the shipped bundles, ``bundle`` (a folder or kind) replacing
+    the one of its kind; :class:`~sphere_jax.checks.InputError` when ``method`` needs no
+    bundle of that kind, so that a bundle given is never silently left unused."""
+    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
+    if bundle is not None:
+        from sphere_jax import api
+        kind = api.load_bundle(bundle).kind
+        if kind not in method.needs:
+            raise checks.InputError("bundle", f"of a kind that method {method.key!r} uses "
+                                    f"({', '.join(method.needs) or 'none: no network'})",
+                                    f"a {kind} bundle")
+        bundles[kind] = api.bundle_path(bundle)
+    return bundles
 
 
 def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir):
@@ -186,12 +205,8 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     (shared equally), each with its own loss and no label (:mod:`sphere_jax.training`), at
     the registration's voxel and radius."""
     from sphere_jax import api, training
-    from sphere_jax.features import methods
     from sphere_jax.training import adaptation
-    kinds = methods.BUNDLE_OF.get(method, ())
-    if not kinds:
-        raise checks.InputError("adapt", "a learned method", f"method {method!r}, which has "
-                                f"no network to adapt")
+    kinds = registry.resolve(method).needs
     os.makedirs(workdir, exist_ok=True)
     scans = []
     for name, points in (("source", source), ("target", target)):

@@ -60,6 +60,11 @@ def test_auto_scale_follows_extent_and_spacing():
         sphere_jax.register(wall, wall, voxel=-1)
     with pytest.raises(sphere_jax.SphereJaxError, match="n_keypoints must be a positive"):
         sphere_jax.register(wall, wall, n_keypoints=0)       # not the default in disguise
+    with pytest.raises(sphere_jax.SphereJaxError, match="seed must be a non-negative integer"):
+        sphere_jax.register(wall, wall, seed="a")
+    with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be of a kind that method "
+                                                        "'lead' uses .lead.; got a compass"):
+        sphere_jax.register(wall, wall, method="lead@flare", bundle="compass")  # never unused
 
 
 def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
