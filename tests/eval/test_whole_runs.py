@@ -1,4 +1,4 @@
-"""The benchmarks end to end at 'tiny' size: files, columns, mean rows, plots, clear errors."""
+"""Whole evaluation runs at 'tiny' size: files, columns, means, plots, errors, resuming."""
 import csv
 import json
 import os
