@@ -297,18 +297,21 @@ class Plateau:
 
     def __init__(self, patience: int, relative: float = 0.0):
         self.patience, self.relative = patience, relative
-        self.best, self.since, self.seen, self.best_seen = float("inf"), 0, 0, 0
+        self.best, self.seen, self.best_seen = float("inf"), 0, -1      # -1: no best yet
         self.best_state, self.best_step = None, None
+
+    @property
+    def since(self) -> int:
+        """Evaluations since the best one."""
+        return self.seen - self.best_seen - 1
 
     def reached(self, val_loss: float, state=None, step=None) -> bool:
         if val_loss < self.best:
-            self.best, self.since, self.best_seen = val_loss, 0, self.seen
+            self.best, self.best_seen = val_loss, self.seen
             if self.patience and state is not None:
                 self.best_step = step
                 self.best_state = jax.device_get(
                     {"params": state["params"], "batch_stats": state["batch_stats"]})
-        else:
-            self.since += 1
         self.seen += 1
         return bool(self.patience) and self.since >= max(self.patience,
                                                          self.relative * self.best_seen)
