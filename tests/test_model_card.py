@@ -153,3 +153,42 @@ def test_a_minutes_budget_card_has_no_step_total_and_names_the_constant_rate(tmp
     assert "- steps: 40 within a 5-minute budget × batch 2; learning rate 0.0001 after 25 " \
            "warm-up steps, then constant (Adam)" in card
     assert "1000000" not in card
+
+
+def _csv_run(tmp_path, name, stem, header, means):
+    run = tmp_path / name
+    run.mkdir()
+    with open(run / f"{stem}.csv", "w") as f:
+        f.write(header + "\n" + "".join(f"{m},mean,{v}\n" for m, v in means.items()))
+    return str(run)
+
+
+def test_the_targets_table_says_what_is_met_and_by_how_much(tmp_path):
+    """The README's targets block, from five runs' mean rows: the best learned descriptor is
+    the one with the highest 3DMatch inlier ratio, each target measured against its runs."""
+    reg = "method,scene,fmr,inlier_ratio,n_correct,rr"
+    match = _csv_run(tmp_path, "match", "results", reg, {
+        "shot": "1,0.30,200,1", "usc": "1,0.40,210,1", "lead": "1,0.20,250,1",
+        "lead_pn": "0.9,0.35,320,1", "lead_vote": "1,0.60,400,1"})
+    lomatch = _csv_run(tmp_path, "lo", "results", reg, {
+        "shot": "0.5,0.05,30,0.4", "usc": "0.5,0.08,35,0.7", "lead_pn": "0.5,0.06,45,0.6",
+        "lead_vote": "0.5,0.10,50,0.5"})
+    rotated = _csv_run(tmp_path, "rot", "results", reg, {"lead_pn": "1,0.28,300,1"})
+    lrf = "method,scene,rep"
+    kitchen = _csv_run(tmp_path, "k", "lrf_results", lrf, {"flare": "0.20", "compass": "0.25"})
+    bunny = _csv_run(tmp_path, "b", "lrf_results", lrf, {"flare": "0.40", "compass": "0.20"})
+    readme = tmp_path / "README.md"
+    readme.write_text("a\n<!-- targets:begin -->\nold\n<!-- targets:end -->\nb\n")
+    publish.publish([], results=str(tmp_path / "results.md"), readme=str(readme),
+                    targets=[match, lomatch, rotated, kitchen, bunny])
+    text = readme.read_text()
+    assert "old" not in text and text.startswith("a\n") and text.endswith("b\n")
+    assert ("| best learned descriptor (lead_pn): inlier ratio ≥ SHOT's and USC's | 0.350 "
+            "against 0.300 and 0.400 (1.17× and 0.87×) | **no** |") in text
+    assert "| its correct matches per pair ≥ 1.5× SHOT's | 320 against 200 (1.60×) | yes |" in text
+    assert "| its feature-match recall ≥ 0.95 | 0.900 | **no** |" in text
+    assert "| its inlier ratio, every scan rotated: within 10 % | 0.280 (-20.0 %) | **no** |" in text
+    assert "| 3DLoMatch: its registration recall ≥ USC's | 0.600 against 0.700 | **no** |" in text
+    assert "| 2.00× and 2.00× | yes |" in text
+    assert "on redkitchen | 0.250 against 0.200 (1.25×) | yes |" in text
+    assert "on the bunny | 0.200 against 0.400 (0.50×) | **no** |" in text

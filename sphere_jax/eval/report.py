@@ -106,6 +106,12 @@ def write(workdir, stem, rows, columns, md):
     return md
 
 
+def read_means(workdir, stem) -> dict:
+    """``{method: its mean row}`` of ``<stem>.csv`` in ``workdir`` (values as strings)."""
+    with open(os.path.join(workdir, f"{stem}.csv")) as f:
+        return {r["method"]: r for r in csv.DictReader(f) if r["scene"] == "mean"}
+
+
 def markdown_report(rows, tables, title):
     parts = [f"# {title}"]
     for key, caption, fmt in tables:

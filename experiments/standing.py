@@ -1,0 +1,69 @@
+"""Where the shipped models stand against the project's accuracy targets on the redkitchen
+scans: a table computed from five evaluation runs' mean rows (``experiments.publish
+--targets=MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY``), so that the README's statement of
+what is met and by how much a target is missed follows the runs.
+
+The runs: the registration benchmark on the 14 3DMatch pairs, on the 13 3DLoMatch pairs and on
+the 3DMatch pairs rotated, and the LRF repeatability on redkitchen and on the bunny.
+"""
+from __future__ import annotations
+
+import os
+
+LEARNED = ("lead", "lead_compass", "lead_pn", "sound")     # single-pass learned descriptors
+
+
+def _means(run_dir) -> dict:
+    """``{method: mean row}`` of a registration or LRF run."""
+    from sphere_jax.eval import report
+    stem = "results" if os.path.isfile(os.path.join(run_dir, "results.csv")) else "lrf_results"
+    return report.read_means(run_dir, stem)
+
+
+def _value(rows, method, column):
+    row = rows.get(method)
+    if row is None or not row.get(column):
+        raise ValueError(f"the run has no {column} for {method} (its mean row)")
+    return float(row[column])
+
+
+def rows(match, lomatch, rotated, lrf_kitchen, lrf_bunny):
+    """``[(target, measured, met)]`` from the five run folders."""
+    m, lo, rot = _means(match), _means(lomatch), _means(rotated)
+    kitchen, bunny = _means(lrf_kitchen), _means(lrf_bunny)
+    best = max((k for k in LEARNED if k in m), key=lambda k: _value(m, k, "inlier_ratio"))
+    ir = lambda rows_, k: _value(rows_, k, "inlier_ratio")
+    out = []
+    shot, usc = ir(m, "shot"), ir(m, "usc")
+    out.append((f"best learned descriptor ({best}): inlier ratio ≥ SHOT's and USC's",
+                f"{ir(m, best):.3f} against {shot:.3f} and {usc:.3f} "
+                f"({ir(m, best) / shot:.2f}× and {ir(m, best) / usc:.2f}×)",
+                ir(m, best) >= max(shot, usc)))
+    c, cs = _value(m, best, "n_correct"), _value(m, "shot", "n_correct")
+    out.append(("its correct matches per pair ≥ 1.5× SHOT's",
+                f"{c:.0f} against {cs:.0f} ({c / cs:.2f}×)", c >= 1.5 * cs))
+    fmr = _value(m, best, "fmr")
+    out.append(("its feature-match recall ≥ 0.95", f"{fmr:.3f}", fmr >= 0.95))
+    change = ir(rot, best) / ir(m, best) - 1
+    out.append(("its inlier ratio, every scan rotated: within 10 %",
+                f"{ir(rot, best):.3f} ({100 * change:+.1f} %)", abs(change) <= 0.10))
+    rr, rr_usc = _value(lo, best, "rr"), _value(lo, "usc", "rr")
+    out.append(("3DLoMatch: its registration recall ≥ USC's", f"{rr:.3f} against {rr_usc:.3f}",
+                rr >= rr_usc))
+    if "lead_vote" in m and "lead_vote" in lo:
+        f_m, f_lo = ir(m, "lead_vote") / shot, ir(lo, "lead_vote") / ir(lo, "shot")
+        out.append(("lead_vote: inlier ratio ≥ 1.8× SHOT's on 3DMatch and 3DLoMatch",
+                    f"{f_m:.2f}× and {f_lo:.2f}×", min(f_m, f_lo) >= 1.8))
+    rep = lambda rows_, k: _value(rows_, k, "rep")
+    for name, rows_, factor in (("redkitchen", kitchen, 1.2), ("the bunny", bunny, 1.0)):
+        q = rep(rows_, "compass") / rep(rows_, "flare")
+        out.append((f"Compass: LRF repeatability ≥ {factor:g}× FLARE's on {name}",
+                    f"{rep(rows_, 'compass'):.3f} against {rep(rows_, 'flare'):.3f} ({q:.2f}×)",
+                    q >= factor))
+    return out
+
+
+def table(*run_dirs) -> str:
+    lines = ["| target | measured | met |", "|---|---|---|"]
+    lines += [f"| {t} | {v} | {'yes' if ok else '**no**'} |" for t, v, ok in rows(*run_dirs)]
+    return "\n".join(lines)
