@@ -16,12 +16,12 @@ def check_roots(config):
     if models.spec(config.model).labelled or d.get("shapes", False):
         return
     entries = pipeline.root_entries(d.root)
+    evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries],
+                                           bool(d.get("allow_evaluation_scenes", False)))
     for entry in entries:
         if not entry.startswith("embedded") and not os.path.exists(pipeline.entry_path(entry)):
             raise checks.ConfigError("config.data.root", "comma-separated scan files or "
                                      "folders, 'embedded:N' or 'shared/<path>'", entry)
-    evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries],
-                                           bool(d.get("allow_evaluation_scenes", False)))
 
 
 def build_source(config):

@@ -6,6 +6,7 @@ import os
 import pytest
 
 from configs import eval_lrf, eval_registration
+from sphere_jax import checks
 from sphere_jax.eval import report, scenes, tasks
 from sphere_jax.features import methods
 
@@ -63,13 +64,13 @@ def test_lrf_tiny_on_stanford_layout(tmp_path, shared):
 def test_bad_config_values_are_named():
     c = eval_registration.get_config("tiny")
     c.methods = "fpfh,nonsense"
-    with pytest.raises(ValueError, match="nonsense"):
+    with pytest.raises(checks.ConfigError, match="config.methods .* .nonsense unknown."):
         tasks.chosen_methods(c, ("fpfh", "shot"), {})
     c.data.root = "/no/such/folder"
     with pytest.raises(FileNotFoundError, match="/no/such/folder"):
         scenes.pair_sets(c)
     c.bundle = "/no/such/bundle"
-    with pytest.raises(FileNotFoundError, match="bundle"):
+    with pytest.raises(checks.ConfigError, match="config.bundle must be a bundle folder"):
         tasks.bundle_paths(c)
     c.methods = "fpfh,lead_pn"
     with pytest.warns(UserWarning, match="lead_pn"):
