@@ -77,8 +77,7 @@ def bundles_used(config):
         chosen = bundle_paths(config)
         names = [_key(m) for m in str(config.get("methods", "")).split(",") if m.strip()]
         if names:                                     # only the kinds the methods use
-            needed = {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
-            chosen = {k: v for k, v in chosen.items() if k in needed}
+            chosen = {k: v for k, v in chosen.items() if k in _kinds(names)}
     else:                                             # a task that names its own bundles
         module = task_module(config.task)
         chosen = module.bundles(config) if hasattr(module, "bundles") else {}
@@ -110,11 +109,16 @@ def check_bundles(config, names):
         return
     from sphere_jax import api
     chosen = bundle_paths(config)
-    for kind in sorted({k for m in names for k in methods.BUNDLE_OF.get(m, ())}):
+    for kind in sorted(_kinds(names)):
         path = chosen.get(kind)
         if path and not bundle.is_bundle(api.bundle_path(path)):
             raise checks.ConfigError(f"config.bundles.{kind}",
                                      "a bundle folder (with config.json)", path)
+
+
+def _kinds(names) -> set:
+    """The bundle kinds the methods ``names`` (keys) need."""
+    return {k for m in names for k in methods.BUNDLE_OF.get(m, ())}
 
 
 def _key(name):
