@@ -22,6 +22,7 @@ import os
 import re
 
 from experiments import cli
+from sphere_jax.data.readers import io
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(REPO, "docs", "results.md")
@@ -166,8 +167,7 @@ def readme_block(readme, name, content):
         raise ValueError(f"{readme} has no {begin} ... {end} block")
     text = re.sub(re.escape(begin) + ".*?" + re.escape(end),
                   lambda _: f"{begin}\n{content}\n{end}", text, flags=re.S)
-    with open(readme, "w") as f:
-        f.write(text)
+    io.atomic_write(readme, text.encode())             # the old README or the new, never half
 
 
 def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations=(),
@@ -180,8 +180,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
     parts += [section(record, md) for _, record, md in runs]
     parts += [adaptation_section(before, after) for before, after in adaptations]
     os.makedirs(os.path.dirname(results), exist_ok=True)
-    with open(results, "w") as f:
-        f.write("\n".join(parts).rstrip() + "\n")
+    io.atomic_write(results, ("\n".join(parts).rstrip() + "\n").encode())
     if headline:
         record, _ = read_run(headline)
         readme_block(readme, "headline", f"{headline_table(headline)}\n\n{stamp(record)}")
