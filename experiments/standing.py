@@ -8,16 +8,9 @@ the 3DMatch pairs rotated, and the LRF repeatability on redkitchen and on the bu
 """
 from __future__ import annotations
 
-import os
+from sphere_jax.eval import report
 
 LEARNED = ("lead", "lead_compass", "lead_pn", "sound")     # single-pass learned descriptors
-
-
-def _means(run_dir) -> dict:
-    """``{method: mean row}`` of a registration or LRF run."""
-    from sphere_jax.eval import report
-    stem = "results" if os.path.isfile(os.path.join(run_dir, "results.csv")) else "lrf_results"
-    return report.read_means(run_dir, stem)
 
 
 def _value(rows, method, column):
@@ -29,8 +22,8 @@ def _value(rows, method, column):
 
 def rows(match, lomatch, rotated, lrf_kitchen, lrf_bunny):
     """``[(target, measured, met)]`` from the five run folders."""
-    m, lo, rot = _means(match), _means(lomatch), _means(rotated)
-    kitchen, bunny = _means(lrf_kitchen), _means(lrf_bunny)
+    m, lo, rot = (report.read_means(d, "results") for d in (match, lomatch, rotated))
+    kitchen, bunny = (report.read_means(d, "lrf_results") for d in (lrf_kitchen, lrf_bunny))
     best = max((k for k in LEARNED if k in m), key=lambda k: _value(m, k, "inlier_ratio"))
     ir = lambda rows_, k: _value(rows_, k, "inlier_ratio")
     out = []
