@@ -178,7 +178,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
 
     ``train.early_stop_patience`` > 0 ends it once the validation loss has not improved for
     that many evaluations (and ``train.early_stop_relative`` times as many as it took to reach
-    the best; :class:`Plateau`, adaptation uses them), and the bundle then keeps
+    the best, and not within ``train.early_stop_grace`` evaluations; :class:`Plateau`,
+    adaptation uses them), and the bundle then keeps
     the weights of the best evaluation (``train.best_step``); a fine-tune from
     ``init_variables`` is evaluated before its first step, so a run that never improves on
     them ships them unchanged.
@@ -227,7 +228,8 @@ def _train(config, workdir, progress, init_variables, command):
             checkpoints.truncate_metrics(metrics_path, start)
     checkpoints.record_workdir(workdir, config)
     plateau = Plateau(int(config.train.get("early_stop_patience", 0) or 0),
-                      float(config.train.get("early_stop_relative", 0) or 0))
+                      float(config.train.get("early_stop_relative", 0) or 0),
+                      int(config.train.get("early_stop_grace", 0) or 0))
     fresh_finetune = init_variables is not None and start == 0 and mngr.latest_step() is None
     if plateau.patience and fresh_finetune:
         before = dict(step=0, **evaluate(config, source, state, eval_step, mesh))
@@ -292,11 +294,12 @@ class Plateau:
     its best for ``patience`` evaluations in a row (never with ``patience`` 0) and, with
     ``relative`` > 0, for at least ``relative`` times as many evaluations as it took to reach
     that best — a run that improved late (noisy losses, a long budget) gets as long again to
-    beat it. With ``patience``, the best evaluation's weights are kept (a host copy of
-    ``params`` and ``batch_stats``: ``best_state``, ``best_step``)."""
+    beat it — and never within the first ``grace`` evaluations (a fine-tune's fresh optimiser
+    first loses ground). With ``patience``, the best evaluation's weights are kept (a host
+    copy of ``params`` and ``batch_stats``: ``best_state``, ``best_step``)."""
 
-    def __init__(self, patience: int, relative: float = 0.0):
-        self.patience, self.relative = patience, relative
+    def __init__(self, patience: int, relative: float = 0.0, grace: int = 0):
+        self.patience, self.relative, self.grace = patience, relative, grace
         self.best, self.seen, self.best_seen = float("inf"), 0, -1      # -1: no best yet
         self.best_state, self.best_step = None, None
 
@@ -313,8 +316,8 @@ class Plateau:
                 self.best_state = jax.device_get(
                     {"params": state["params"], "batch_stats": state["batch_stats"]})
         self.seen += 1
-        return bool(self.patience) and self.since >= max(self.patience,
-                                                         self.relative * self.best_seen)
+        return bool(self.patience) and self.seen > self.grace and \
+            self.since >= max(self.patience, self.relative * self.best_seen)
 
 
 def evaluate(config, source, state, eval_step, mesh):

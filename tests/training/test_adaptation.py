@@ -30,6 +30,18 @@ def test_a_relative_plateau_waits_as_long_as_the_best_took():
     assert [early.reached(v) for v in (1.0, 1.1, 1.2)] == [False, False, True]
 
 
+def test_a_plateau_waits_out_its_grace():
+    """A fine-tune whose first evaluations are worse than its start is not stopped before
+    ``grace`` evaluations (the start, then the fresh optimiser's first losses)."""
+    losses = (1.0, 1.3, 1.2, 1.1, 0.9, 0.8)
+    plain = loop.Plateau(2)
+    assert [plain.reached(v) for v in losses].index(True) == 2
+    graced = loop.Plateau(2, grace=4)
+    assert [graced.reached(v) for v in losses] == [False] * 6 and graced.best == 0.8
+    late = loop.Plateau(2, grace=4)          # after the grace, patience decides as before
+    assert [late.reached(v) for v in (1.0, 1.3, 1.2, 1.1, 1.2)] == [False] * 4 + [True]
+
+
 def test_a_plateau_keeps_the_weights_of_its_best_evaluation():
     plateau = loop.Plateau(3)
     for step, v in enumerate((1.0, 0.7, 0.9, 0.8)):
