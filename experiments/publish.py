@@ -3,10 +3,12 @@ are generated from the runs' own files, so a rerun updates them.
 
     python -m experiments.publish RUN_DIR [RUN_DIR ...] [--headline=RUN_DIR]
         [--adaptation=BEFORE_RUN:AFTER_RUN ...] [--targets=MATCH,LOMATCH,ROTATED,LRF,LRF_BUNNY]
+        [--fresh]
 
 Each RUN_DIR is an ``experiments.evaluate`` workdir (its ``run.json`` says the command, the
-bundles and the date; its markdown and CSV hold the tables). ``docs/results.md`` gets one
-section per run, in the order given; ``--headline`` (a registration run) replaces the table
+bundles and the date; its markdown and CSV hold the tables). ``docs/results.md`` has one
+section per run, keyed by its folder: a run published again replaces its own section, the
+others stay (``--fresh``: only the runs given, in their order); ``--headline`` (a registration run) replaces the table
 between the README's ``headline`` markers; every bundle a run used gets the run's table in its
 model card (:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with
 the shipped bundles and the same run with adapted ones (``experiments.adapt``): a section
@@ -23,6 +25,7 @@ import re
 
 from experiments import cli
 from sphere_jax.data.readers import io
+from sphere_jax.eval import report
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(REPO, "docs", "results.md")
@@ -30,6 +33,11 @@ README = os.path.join(REPO, "README.md")
 HEADLINE = (("fmr", "FMR", "{:.2f}"), ("inlier_ratio", "inlier ratio", "{:.3f}"),
             ("n_correct", "correct / pair", "{:.0f}"), ("rr", "RR", "{:.2f}"),
             ("ms_per_keypoint", "ms / keypoint", "{:.2f}"))
+
+
+def stem_of(record) -> str:
+    """The file stem of a run's tables (``<stem>.md``, ``<stem>.csv``)."""
+    return {"registration": "results", "lrf": "lrf_results"}.get(record["task"], record["task"])
 
 
 def read_run(run_dir):
@@ -40,8 +48,7 @@ def read_run(run_dir):
                                 f"workdir (or one written before runs recorded themselves)")
     with open(path) as f:
         record = json.load(f)
-    stem = {"registration": "results", "lrf": "lrf_results"}.get(record["task"], record["task"])
-    md_path = os.path.join(run_dir, f"{stem}.md")
+    md_path = os.path.join(run_dir, f"{stem_of(record)}.md")
     if not os.path.isfile(md_path):
         found = sorted(glob.glob(os.path.join(run_dir, "*.md")))
         md_path = found[0] if found else None
@@ -106,46 +113,78 @@ def section(record, markdown) -> str:
 
 def mean_rows(run_dir) -> dict:
     """``{method: mean row}`` of a registration run's ``results.csv``."""
-    from sphere_jax.eval import report
     return report.read_means(run_dir, "results")
 
 
-def adaptation_section(before_dir, after_dir) -> str:
-    """A registration run with the shipped bundles against the same run with adapted ones:
-    inlier ratio, correct matches and RR of each method before and after, and each adapted
-    bundle's budget, steps and scans (read from the bundle)."""
+# What an adaptation section compares, per task: (column, label, format); the change is that
+# of the first.
+COMPARED = {"registration": (("inlier_ratio", "inlier ratio", "{:.3f}"),
+                             ("n_correct", "correct / pair", "{:.0f}"), ("rr", "RR", "{:.2f}")),
+            "lrf": (("rep", "repeatability", "{:.3f}"),
+                    ("mean_angle_deg", "mean angle (degrees)", "{:.1f}"))}
+
+
+def adapted_bundles(before, after, after_dir):
+    """``{kind: path}`` of the bundles the run ``after`` used adapted: the ones it names that
+    ``before`` did not, and those it adapted itself first (``adapted_<kind>/bundle`` in its
+    folder, an LRF run's test-time adaptation)."""
+    out = {}
+    for kind, rec in after.get("bundles", {}).items():
+        own = os.path.join(after_dir, f"adapted_{kind}", "bundle")
+        if os.path.isdir(own):
+            out[kind] = own
+        elif rec["path"] != before.get("bundles", {}).get(kind, {}).get("path"):
+            out[kind] = rec["path"]
+    return out
+
+
+def adaptation_line(kind, path) -> str:
+    """What an adapted bundle did: steps, minutes, the weights kept, the scans and scale."""
     from sphere_jax import bundle, model_card
+    config = bundle.read_config(path)
+    budget = float(config.train.get("time_budget_s", 0) or 0) / 60
+    lines = model_card.read_metrics(os.path.join(path, model_card.METRICS))
+    took = model_card.wall_time_s(lines, config.train.batch_size) / 60
+    best = config.train.get("best_step")
+    return (f"{kind}: {bundle.steps_done(config)} steps, {took:.1f} min of them"
+            + (f" (budget {budget:g})" if budget else "")
+            + ("" if best is None else ", the weights it started from kept (no better "
+               "validation loss)" if best == 0 else f", weights of step {best}")
+            + f", on `{config.data.root}` at voxel {config.data.voxel:g}, radius "
+              f"{config.data.radius:g} (`{path}`)")
+
+
+def adaptation_section(before_dir, after_dir) -> str:
+    """A run with the shipped bundles against the same run with adapted ones (registration:
+    inlier ratio, correct matches, RR; LRF: repeatability, mean angle), method by method, and
+    each adapted bundle's budget, steps and scans (read from the bundle)."""
     (before, _), (after, md) = read_run(before_dir), read_run(after_dir)
-    old, new = mean_rows(before_dir), mean_rows(after_dir)
+    if before["task"] != after["task"] or before["task"] not in COMPARED:
+        raise ValueError(f"--adaptation compares two runs of one task among "
+                         f"{', '.join(COMPARED)}; got {before['task']} and {after['task']}")
+    compared = COMPARED[before["task"]]
+    old, new = (report.read_means(d, stem_of(r)) for d, r in ((before_dir, before),
+                                                               (after_dir, after)))
     cells = lambda r, key, fmt: fmt.format(float(r[key])) if r and r.get(key) else "–"
-    out = ["| method | inlier ratio: before | after | change | correct / pair: before | after "
-           "| RR: before | after |", "|---" * 8 + "|"]
+    head = [f"{label}: before | after" + (" | change" if i == 0 else "")
+            for i, (_, label, _) in enumerate(compared)]
+    out = ["| method | " + " | ".join(head) + " |", "|---" * (2 * len(compared) + 2) + "|"]
+    first = compared[0][0]
     for method, b in old.items():
         a = new.get(method)
-        change = f"{float(a['inlier_ratio']) / float(b['inlier_ratio']) - 1:+.0%}" if a and \
-            float(b["inlier_ratio"]) > 0 else "–"
-        out.append(f"| {method} | {cells(b, 'inlier_ratio', '{:.3f}')} | "
-                   f"{cells(a, 'inlier_ratio', '{:.3f}')} | {change} | "
-                   f"{cells(b, 'n_correct', '{:.0f}')} | {cells(a, 'n_correct', '{:.0f}')} | "
-                   f"{cells(b, 'rr', '{:.2f}')} | {cells(a, 'rr', '{:.2f}')} |")
-    adapted = []
-    for kind, rec in after.get("bundles", {}).items():
-        if rec["path"] == before.get("bundles", {}).get(kind, {}).get("path"):
-            continue
-        config = bundle.read_config(rec["path"])
-        budget = float(config.train.get("time_budget_s", 0) or 0) / 60
-        lines = model_card.read_metrics(os.path.join(rec["path"], model_card.METRICS))
-        took = model_card.wall_time_s(lines, config.train.batch_size) / 60
-        best = config.train.get("best_step")
-        adapted.append(f"{kind}: {bundle.steps_done(config)} steps, {took:.1f} min of them"
-                       + (f" (budget {budget:g})" if budget else "")
-                       + ("" if best is None else ", the weights it started from kept (no "
-                          "better validation loss)" if best == 0 else f", weights of step {best}")
-                       + f", on `{config.data.root}` at voxel {config.data.voxel:g}, radius "
-                         f"{config.data.radius:g} (`{rec['path']}`)")
-    title, _ = split_title(after, md)
-    return (f"## Adaptation without labels: {title.lower()} on {data_of(after)}\n\n"
-            f"Before: `{before.get('command')}`\n\nAfter: `{after.get('command')}`\n\n"
+        change = f"{float(a[first]) / float(b[first]) - 1:+.0%}" if a and a.get(first) and \
+            float(b[first]) > 0 else "–"
+        row = []
+        for i, (key, _, fmt) in enumerate(compared):
+            row += [cells(b, key, fmt), cells(a, key, fmt)] + ([change] if i == 0 else [])
+        out.append(f"| {method} | " + " | ".join(row) + " |")
+    adapted = [adaptation_line(kind, path)
+               for kind, path in adapted_bundles(before, after, after_dir).items()]
+    title = split_title(after, md)[0].split(",")[0]       # its own adaptation is said below
+    if title[1:2].islower():                                 # "registration", not "lRF"
+        title = title[0].lower() + title[1:]
+    return (f"## Adaptation without labels: {title} on {data_of(after)}"
+            f"\n\nBefore: `{before.get('command')}`\n\nAfter: `{after.get('command')}`\n\n"
             f"Adapted bundles (no pose or ground truth read): " + "; ".join(adapted)
             + f". Runs {before['date']} and {after['date']}.\n\n" + "\n".join(out) + "\n")
 
@@ -170,15 +209,43 @@ def readme_block(readme, name, content):
     io.atomic_write(readme, text.encode())             # the old README or the new, never half
 
 
+SECTION = re.compile(r"^<!-- section: (.+?) -->$", re.M)
+
+
+def run_key(run_dir) -> str:
+    """A run's section key in ``docs/results.md``: its folder, relative to the repository
+    when inside it (so that ``runs/x`` and its absolute path name one section)."""
+    path = os.path.abspath(run_dir)
+    inside = os.path.commonpath([path, REPO]) == REPO
+    return os.path.relpath(path, REPO) if inside else path
+
+
+def merged_sections(old_text, sections):
+    """``[(key, markdown)]``: the sections of ``old_text`` (a results file this module wrote)
+    in their order, each replaced by its namesake in ``sections``; new keys appended."""
+    found = SECTION.split(old_text)[1:]           # [key, text, key, text, ...]
+    merged = {k: t.strip() for k, t in zip(found[::2], found[1::2])}
+    merged.update((k, t.strip()) for k, t in sections)
+    return list(merged.items())
+
+
 def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations=(),
-            targets=()):
+            targets=(), fresh=False):
+    """Write the given runs' sections into ``results`` — replacing those runs' sections
+    there and keeping the others (``fresh``: only the given ones), so that one rerun updates
+    its own table — then the README's headline and targets blocks and the model cards."""
     runs = [(d, *read_run(d)) for d in run_dirs]
+    sections = [(run_key(d), section(record, md)) for d, record, md in runs]
+    sections += [(f"adaptation {run_key(before)} -> {run_key(after)}",
+                  adaptation_section(before, after)) for before, after in adaptations]
+    if not fresh and os.path.isfile(results):
+        sections = merged_sections(open(results).read(), sections)
     parts = ["# Results", "",
              "Generated by `python -m experiments.publish` from the evaluation runs' own files "
              "(`run.json`, the tables' markdown and CSV); do not edit. Each section names the "
              "command and the bundles that produced it.", ""]
-    parts += [section(record, md) for _, record, md in runs]
-    parts += [adaptation_section(before, after) for before, after in adaptations]
+    for key, text in sections:
+        parts += [f"<!-- section: {key} -->", text.strip(), ""]
     os.makedirs(os.path.dirname(results), exist_ok=True)
     io.atomic_write(results, ("\n".join(parts).rstrip() + "\n").encode())
     if headline:
@@ -203,26 +270,31 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
 
 def main(argv=None):
     parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="+", help="experiments.evaluate workdirs")
+    parser.add_argument("runs", nargs="*", help="experiments.evaluate workdirs")
     parser.add_argument("--headline", default=None, help="the run of the README's table")
     parser.add_argument("--adaptation", action="append", default=[],
                         help="BEFORE_RUN:AFTER_RUN, the same registration run with the shipped "
                              "and with adapted bundles")
     parser.add_argument("--targets", default=None,
-                        help="MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY: the redkitchen "
-                             "registration runs and the LRF runs of the README's targets table "
-                             "(experiments/standing.py)")
+                        help="MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY[,LRF_KITCHEN_ADAPTED,"
+                             "LRF_BUNNY_ADAPTED]: the redkitchen registration runs and the LRF "
+                             "runs of the README's targets table (experiments/standing.py)")
+    parser.add_argument("--fresh", action="store_true",
+                        help="write only the given runs' sections (default: replace those and "
+                             "keep the file's other sections)")
     args = parser.parse_args(argv)
     targets = args.targets.split(",") if args.targets else []
-    if targets and len(targets) != 5:
+    if targets and len(targets) not in (5, 7):
         parser.error(f"--targets takes five runs, MATCH,LOMATCH,ROTATED,LRF_KITCHEN,"
-                     f"LRF_BUNNY; got {args.targets}")
+                     f"LRF_BUNNY, and optionally the two LRF runs with adaptation; got "
+                     f"{args.targets}")
     pairs = [tuple(a.split(":")) for a in args.adaptation]
     if any(len(p) != 2 for p in pairs):
         parser.error(f"--adaptation takes BEFORE_RUN:AFTER_RUN, got {args.adaptation}")
     with cli.refusals():
         try:
-            print(publish(args.runs, args.headline, adaptations=pairs, targets=targets))
+            print(publish(args.runs, args.headline, adaptations=pairs, targets=targets,
+                          fresh=args.fresh))
         except (FileNotFoundError, ValueError) as e:
             cli.fail(e)
 

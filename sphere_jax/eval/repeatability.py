@@ -173,6 +173,9 @@ def run(config, workdir, progress=True):
         return [], ""
     rows = [dict(method=r.method, scene=r.scene, **r.summary) for r in results]
     variant = " (rotated)" if config.rotate else ""
+    if config.adapt_steps:          # declared in the title: adapted on the scans it scores
+        variant += (f", learned frames adapted on the evaluation scans first "
+                    f"({config.adapt_steps} steps, no ground truth read)")
     md = report.write_tables(workdir, rows, report.LRF_COLUMNS,
                              report.titled(report.LRF_TABLES, rho=config.rho), "lrf_results",
                              f"LRF repeatability{variant}")
