@@ -45,8 +45,8 @@ def main(argv=None):
     parser.add_argument("--minutes", type=float, default=None,
                         help="wall-time budget (default 10 when --steps is not given)")
     parser.add_argument("--steps", type=int, default=None)
-    parser.add_argument("--voxel", default="auto")
-    parser.add_argument("--radius", default="auto")
+    parser.add_argument("--voxel", type=cli.scale, default="auto")
+    parser.add_argument("--radius", type=cli.scale, default="auto")
     parser.add_argument("--patience", type=int, default=adaptation.PATIENCE,
                         help="evaluations without improvement before stopping, at least as "
                              "many as the best took (0: never stop early)")
@@ -57,8 +57,9 @@ def main(argv=None):
     args = parser.parse_args(argv)
     minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
     with cli.refusals(arguments=True):
-        for name in ("minutes", "steps"):
+        for name in ("minutes", "steps", "learning_rate"):
             checks.positive(getattr(args, name), name, integer=name == "steps")
+        checks.non_negative(args.patience, "patience", integer=True)
         bundle = api.load_bundle(args.bundle)
         data = auto_data(bundle, args.data, args.voxel, args.radius)
         workdirs.prepare(args.workdir, "--workdir")

@@ -68,6 +68,19 @@ def refusals(arguments=False):
         fail(e, USAGE if arguments else 1)
 
 
+def scale(text):
+    """argparse type of ``--voxel`` and ``--radius``: ``auto`` or a positive number."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value is None or not (value > 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive number, got {text!r}")
+    return value
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse whose refusals are one line on stderr with exit status 2, like the absl mains'
     (argparse's own print the usage first)."""

@@ -288,6 +288,9 @@ def main(argv=None):
         parser.error(f"--targets takes five runs, MATCH,LOMATCH,ROTATED,LRF_KITCHEN,"
                      f"LRF_BUNNY, and optionally the two LRF runs with adaptation; got "
                      f"{args.targets}")
+    if not (args.runs or args.adaptation or targets or args.headline):
+        parser.error("nothing to publish: give run folders, --adaptation, --targets or "
+                     "--headline")
     pairs = [tuple(a.split(":")) for a in args.adaptation]
     if any(len(p) != 2 for p in pairs):
         parser.error(f"--adaptation takes BEFORE_RUN:AFTER_RUN, got {args.adaptation}")

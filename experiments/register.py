@@ -15,7 +15,6 @@ with status 3.
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -29,15 +28,6 @@ from sphere_jax.features import registry
 FAILED = 3          # exit status of a registration that did not succeed (2: bad usage)
 
 
-def _scale(text):
-    if text == "auto":
-        return text
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a number, got {text!r}") from None
-
-
 def main(argv=None):
     parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("source")
@@ -46,8 +36,8 @@ def main(argv=None):
                         choices=registry.spellings("descriptor", "voted"),
                         help="descriptor[@frame][+vote] or its key (lead@compass = "
                              "lead_compass)")
-    parser.add_argument("--voxel", type=_scale, default="auto")
-    parser.add_argument("--radius", type=_scale, default="auto")
+    parser.add_argument("--voxel", type=cli.scale, default="auto")
+    parser.add_argument("--radius", type=cli.scale, default="auto")
     parser.add_argument("--keypoints", type=int, default=align.DEFAULT_KEYPOINTS,
                         help="random keypoints per cloud (fewer: faster, lower recall)")
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")

@@ -55,6 +55,14 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
      "adapt: error: minutes must be a positive finite number; got 0.0"),
     (["experiments.adapt", "--bundle=lead"], "adapt: error: the following arguments are "
                                              "required: --data"),
+    (["experiments.adapt", "--bundle=lead", "--data=.", "--patience=-1"],
+     "adapt: error: patience must be a non-negative integer; got -1"),
+    (["experiments.adapt", "--bundle=lead", "--data=.", "--learning_rate=0"],
+     "adapt: error: learning_rate must be a positive finite number; got 0.0"),
+    (["experiments.adapt", "--bundle=lead", "--data=.", "--voxel=abc"],
+     "adapt: error: argument --voxel: expected 'auto' or a positive number, got 'abc'"),
+    (["experiments.register", "a.ply", "b.ply", "--radius=-1"],
+     "register: error: argument --radius: expected 'auto' or a positive number, got '-1'"),
     (["experiments.register", "/nonexistent.ply", "b.ply"], "register: error: "
                                                             "/nonexistent.ply: no such file"),
     (["experiments.register", "a.ply", "b.ply", "--method=nope"],
@@ -66,6 +74,8 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     (["experiments.publish", "/nonexistent"], "publish: error: /nonexistent has no run.json"),
     (["experiments.publish", "/nonexistent", "--adaptation=a"],
      "publish: error: --adaptation takes BEFORE_RUN:AFTER_RUN"),
+    (["experiments.publish", "--targets=a,b,c"], "publish: error: --targets takes five runs"),
+    (["experiments.publish"], "publish: error: nothing to publish"),
     (["experiments.make_data", "--lidar=/nonexistent"],
      "make_data: error: /nonexistent: no cloud_bin_K.ply fragments to scan"),
 ])
