@@ -204,8 +204,15 @@ CONFIG_RULES = {
     "data.val_fraction": (float, 0, True), "data.copy_jitter": (float, 0, True),
     "infer_chunk": (int, 1, True),
     "chunk": (int, 1, True), "adapt_steps": (int, 0, True),
+    # evaluation thresholds: a negative or NaN one scores every method 0 without a word
+    "tau1": (float, 0, False), "tau2": (float, 0, False), "rho": (float, 0, False),
+    "match_dist": (float, 0, False), "ransac_distance": (float, 0, False),
+    "ransac_iterations": (int, 1, True), "evaluation.ransac_iterations": (int, 1, True),
+    "fpfh_radius": (float, 0, False),
 }
-NOTES = {"data.max_pairs": " (0: every pair)", "data.val_fraction": " and below 1"}
+# field -> (upper bound, whether it is allowed), for the fields that have one
+UPPER = {"data.val_fraction": (1, False), "tau2": (1, True), "rho": (1, True)}
+NOTES = {"data.max_pairs": " (0: every pair)"}
 
 
 def config_values(config, prefix="config"):
@@ -224,12 +231,14 @@ def config_values(config, prefix="config"):
         ok_type = numbers.Integral if kind is int else numbers.Real
         bound = (">= " if inclusive else "> ") + str(low)
         expected = f"{'an integer' if kind is int else 'a finite number'} {bound}"
+        high, high_ok = UPPER.get(field, (np.inf, True))
+        if high < np.inf:
+            expected += f" and {'at most' if high_ok else 'below'} {high}"
         expected += NOTES.get(field, "")
         if isinstance(node, bool) or not isinstance(node, ok_type):
             raise ConfigError(f"{prefix}.{field}", expected, node)
-        bad = not np.isfinite(node) or (node < low if inclusive else node <= low)
-        if field == "data.val_fraction":
-            bad = bad or node >= 1
+        bad = not np.isfinite(node) or (node < low if inclusive else node <= low) \
+            or (node > high if high_ok else node >= high)
         if bad:
             raise ConfigError(f"{prefix}.{field}", expected, node)
     return config

@@ -1,10 +1,13 @@
 """The boundary checks: every malformed argument is refused with an error of the project that
 names the argument, what was expected and what came."""
+import importlib
+
 import jax
 import ml_collections
 import numpy as np
 import pytest
 
+import configs
 import sphere_jax
 from sphere_jax import checks
 from sphere_jax.spherical import so3
@@ -102,11 +105,15 @@ def test_rotations():
     ("data.radius", 0.0, "radius must be a finite number > 0; got 0.0"),
     ("data.val_fraction", 1.0, "val_fraction must be a finite number >= 0 and below 1"),
     ("data.voxel", "2cm", "voxel must be a finite number > 0; got '2cm'"),
+    ("rho", 2.0, "config.rho must be a finite number > 0 and at most 1; got 2.0"),
+    ("tau1", -0.1, "config.tau1 must be a finite number > 0; got -0.1"),
+    ("match_dist", float("nan"), "config.match_dist must be a finite number > 0; got nan"),
 ])
 def test_config_values(field, value, message):
-    section, name = field.split(".")
+    *section, name = field.split(".")
+    config = {name: value} if not section else {section[0]: {name: value}}
     with pytest.raises(checks.ConfigError, match=message):
-        checks.config_values(ml_collections.ConfigDict({section: {name: value}}))
+        checks.config_values(ml_collections.ConfigDict(config))
 
 
 def test_shipped_configs_pass_their_checks():
@@ -114,6 +121,9 @@ def test_shipped_configs_pass_their_checks():
     for size in ("paper", "mid", "small", "tiny"):
         checks.config_values(lead.get_config(size))
     checks.config_values(eval_registration.get_config("quick"))
+    for name in configs.config_names():             # every experiment's default arguments
+        module = importlib.import_module(f"configs.{name}")
+        checks.config_values(module.get_config("tiny"))
     assert checks.config_values(ml_collections.ConfigDict({"chunk": None}))   # a placeholder
 
 
