@@ -158,7 +158,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         t0 = time.perf_counter()
 
     min_inliers = checks.non_negative(min_inliers, "min_inliers", integer=True)
-    min_fitness = checks.non_negative(min_fitness, "min_fitness")
+    min_fitness = checks.fraction(min_fitness, "min_fitness")
     fail = functools.partial(Registration, np.eye(4), 0, 0, np.nan, np.nan, voxel, radius,
                              method, seconds)
     few = [(name, len(p)) for name, p in (("source", source), ("target", target))

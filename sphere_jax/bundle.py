@@ -107,7 +107,10 @@ def read_variables(path) -> dict:
     devices they were saved from."""
     target = os.path.join(os.path.abspath(str(path)), VARIABLES)
     if not os.path.isdir(target):
-        raise BundleError(path, f"no {VARIABLES}/ folder (the weights)")
+        inner = os.path.join(str(path), "bundle")
+        hint = f"; a training or adaptation workdir? its bundle is {inner}" \
+            if os.path.isdir(os.path.join(inner, VARIABLES)) else ""
+        raise BundleError(path, f"no {VARIABLES}/ folder (the weights){hint}")
 
     def restore():
         with ocp.StandardCheckpointer() as ckpt:

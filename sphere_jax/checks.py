@@ -146,6 +146,16 @@ def non_negative(value, name, integer=False, default=None):
     return _bounded(value, name, integer, default, "non-negative", lambda v: v >= 0)
 
 
+def fraction(value, name, default=None):
+    """A number in [0, 1] (a share: ICP fitness, an overlap); ``None`` gives ``default``."""
+    if value is None:
+        return default
+    number = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if not number or not 0 <= value <= 1:                 # NaN fails the comparison too
+        raise InputError(name, "a number in [0, 1]", repr(value) if number else shown(value))
+    return float(value)
+
+
 def _bounded(value, name, integer, default, word, ok):
     if value is None:
         return default

@@ -65,6 +65,9 @@ def test_auto_scale_follows_extent_and_spacing():
     with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be of a kind that method "
                                                         "'lead' uses .lead.; got a compass"):
         sphere_jax.register(wall, wall, method="lead@flare", bundle="compass")  # never unused
+    with pytest.raises(sphere_jax.SphereJaxError, match=r"min_fitness must be a number in "
+                                                        r"\[0, 1\]; got 2"):
+        sphere_jax.register(wall, wall, min_fitness=2)       # no ICP fitness reaches it
 
 
 def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):

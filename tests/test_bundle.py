@@ -27,6 +27,13 @@ def test_save_load_round_trip_and_training_data(tmp_path):
     assert loaded.kind == "lead" and loaded.spec is models.spec("lead")
     with pytest.raises(ValueError, match="not a bundle"):
         bundle.read_config(tmp_path)
+    # A workdir holds the run's config.json beside its bundle: the error points at the bundle.
+    work = tmp_path / "w"
+    bundle.save(work / "bundle", config, dict(variables), statement)
+    (work / "config.json").write_text(open(os.path.join(path, "config.json")).read())
+    with pytest.raises(ValueError, match=f"a training or adaptation workdir. its bundle is "
+                                         f"{work}/bundle"):
+        api.load_bundle(work)
 
 
 def test_shipped_bundles_state_what_they_were_trained_on():
