@@ -8,11 +8,13 @@ are generated from the runs' own files, so a rerun updates them.
 Each RUN_DIR is an ``experiments.evaluate`` workdir (its ``run.json`` says the command, the
 bundles and the date; its markdown and CSV hold the tables). ``docs/results.md`` has one
 section per run, keyed by its folder: a run published again replaces its own section, the
-others stay (``--fresh``: only the runs given, in their order); ``--headline`` (a registration run) replaces the table
-between the README's ``headline`` markers; every bundle a run used gets the run's table in its
-model card (:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with
-the shipped bundles and the same run with adapted ones (``experiments.adapt``): a section
-compares them method by method and says what each bundle adapted on, for how long.
+others stay (``--fresh``: only the runs given, in their order). ``--headline`` (a
+registration run) replaces the table between the README's ``headline`` markers; every bundle
+a run used gets the run's table in its model card
+(:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with the shipped
+bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
+``adapt_steps``): a section compares them method by method and says what each bundle adapted
+on, for how long.
 ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured and met or
 not (:mod:`experiments.standing`).
 """
@@ -273,8 +275,8 @@ def main(argv=None):
     parser.add_argument("runs", nargs="*", help="experiments.evaluate workdirs")
     parser.add_argument("--headline", default=None, help="the run of the README's table")
     parser.add_argument("--adaptation", action="append", default=[],
-                        help="BEFORE_RUN:AFTER_RUN, the same registration run with the shipped "
-                             "and with adapted bundles")
+                        help="BEFORE_RUN:AFTER_RUN, the same registration or LRF run with the "
+                             "shipped and with adapted bundles")
     parser.add_argument("--targets", default=None,
                         help="MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY[,LRF_KITCHEN_ADAPTED,"
                              "LRF_BUNNY_ADAPTED]: the redkitchen registration runs and the LRF "
