@@ -28,6 +28,9 @@ def read_points(path) -> Cloud:
     ext = os.path.splitext(str(path))[1].lower()
     readers = {".ply": read_ply, ".pcd": read_pcd, ".off": read_off, ".txt": read_txt,
                ".xyz": read_xyz, ".npy": read_npy}
+    if os.path.isdir(str(path)):
+        raise DataError(path, "is a folder: give one point file (a folder of scans is for "
+                              "data.root or --data)")
     if ext not in readers:
         raise DataError(path, f"unknown point-cloud suffix {ext!r} (known: {sorted(readers)})")
     return readers[ext](path)

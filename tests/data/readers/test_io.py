@@ -104,6 +104,9 @@ def test_missing_file_and_unknown_suffix(tmp_path):
         io.read_ply(tmp_path / "missing.ply")
     with pytest.raises(io.DataError, match="unknown point-cloud suffix"):
         io.read_points(tmp_path / "cloud.las")
+    (tmp_path / "scans.ply").mkdir()                  # a folder, whatever its name
+    with pytest.raises(io.DataError, match="is a folder: give one point file"):
+        io.read_points(tmp_path / "scans.ply")
     with pytest.raises(io.DataError, match="line 3"):
         io.read_points(_write(tmp_path, "l.ply", "ply\nformat ascii 1.0\nbogus line\n"))
 
