@@ -238,8 +238,10 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
     its own table — then the README's headline and targets blocks and the model cards."""
     runs = [(d, *read_run(d)) for d in run_dirs]
     sections = [(run_key(d), section(record, md)) for d, record, md in runs]
-    sections += [(f"adaptation {run_key(before)} -> {run_key(after)}",
-                  adaptation_section(before, after)) for before, after in adaptations]
+    # An adaptation section is its adapted run's: published again with another 'before' run,
+    # it replaces the one it had.
+    sections += [(f"adaptation {run_key(after)}", adaptation_section(before, after))
+                 for before, after in adaptations]
     if not fresh and os.path.isfile(results):
         sections = merged_sections(open(results).read(), sections)
     parts = ["# Results", "",
