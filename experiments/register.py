@@ -11,7 +11,7 @@ with status 3.
 
     python -m experiments.register a.ply b.ply --method=fpfh --voxel=0.05 --out=runs/ab
     python -m experiments.register a.ply b.ply --method=lead@compass
-    python -m experiments.register a.ply b.ply --adapt=5 --out=runs/ab   # adapt first, 5 min
+    python -m experiments.register a.ply b.ply --method=lead@compass --adapt=5 --out=runs/ab
 """
 from __future__ import annotations
 
@@ -42,8 +42,8 @@ def main(argv=None):
                         help="random keypoints per cloud (fewer: faster, lower recall)")
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")
     parser.add_argument("--adapt", type=float, default=None, metavar="MINUTES",
-                        help="adapt the method's networks to these two scans first, without "
-                             "labels (kept in OUT/adapted with --out)")
+                        help="adapt the method's learned frames (Compass, SOUND) to these two "
+                             "scans first, without labels (kept in OUT/adapted with --out)")
     parser.add_argument("--no-icp", action="store_true")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")

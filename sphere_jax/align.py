@@ -131,8 +131,9 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
         failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
         voxelised points in a cloud or ``MIN_MATCHES`` mutual matches.
-      adapt: minutes of adaptation of the method's bundles to these two scans first, without
-        labels (:func:`adapted_bundles`); ``adapt_workdir`` keeps the adapted bundles
+      adapt: minutes of adaptation of the method's learned frames (Compass, SOUND) to these
+        two scans first, without labels (:func:`adapted_bundles`; a method without learned
+        frames is refused); ``adapt_workdir`` keeps the adapted bundles
         (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``), else a temporary
         folder does.
     """
@@ -147,9 +148,13 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     seed = checks.non_negative(seed, "seed", integer=True)
     bundles = method_bundles(chosen, bundle)
     adapt = None if adapt is None else checks.positive(adapt, "adapt")
-    if adapt and not chosen.learned:
-        raise checks.InputError("adapt", "used with a learned method",
-                                f"method {method!r}, which has no network to adapt")
+    if adapt and not frame_kinds(chosen):
+        able = [m.name for m in registry.METHODS if m.kind != "diagnostic" and frame_kinds(m)]
+        why = ("which has no network to adapt" if not chosen.learned else
+               "whose frames are not learned (adapting its descriptor with its reconstruction "
+               "loss lowered its inlier ratio or kept its weights: docs/results.md)")
+        raise checks.InputError("adapt", f"used with a method whose frames are learned "
+                                f"({', '.join(able)})", f"method {chosen.name!r}, {why}")
     seconds, t0 = {}, time.perf_counter()
 
     def lap(stage):
@@ -200,13 +205,22 @@ def method_bundles(method: registry.Method, bundle=None):
     return bundles
 
 
+def frame_kinds(method: registry.Method) -> tuple[str, ...]:
+    """The bundle kinds whose learned frames ``method`` uses (Compass, SOUND): what ``adapt``
+    fine-tunes. Adapting the frames raised LEAD (Compass)'s inlier ratio on the bunny's scans
+    and on redkitchen; adapting LEAD's or LEAD-PN's reconstruction did not help its matching
+    (the adaptation tables of docs/results.md)."""
+    from sphere_jax import models
+    return tuple(k for k in method.needs if models.spec(k).orient is not None)
+
+
 def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir):
-    """``bundles`` with those ``method`` uses adapted to the two scans for ``minutes`` in all
-    (shared equally), each with its own loss and no label (:mod:`sphere_jax.training`), at
-    the registration's voxel and radius."""
+    """``bundles`` with the frame networks ``method`` uses (:func:`frame_kinds`) adapted to
+    the two scans for ``minutes`` in all (shared equally), each with its own loss and no
+    label (:mod:`sphere_jax.training`), at the registration's voxel and radius."""
     from sphere_jax import api, training
     from sphere_jax.training import adaptation
-    kinds = registry.resolve(method).needs
+    kinds = frame_kinds(registry.resolve(method))
     os.makedirs(workdir, exist_ok=True)
     scans = []
     for name, points in (("source", source), ("target", target)):

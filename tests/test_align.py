@@ -12,6 +12,7 @@ from sphere_jax import align, paths
 from sphere_jax.data import demo
 from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
+from sphere_jax.features import registry
 
 
 @pytest.fixture(scope="module")
@@ -113,21 +114,36 @@ def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
-    """``--adapt``: LEAD-PN adapted to the two scans (a few seconds here), kept in
-    OUT/adapted with a card, and the pair still registered within 5° and 10 cm."""
+    """``--adapt``: Compass's frames adapted to the two scans (a few seconds here) for LEAD
+    (Compass), kept in OUT/adapted with a card, LEAD itself not, and the pair still
+    registered within 5° and 10 cm; a method without learned frames is refused."""
     (src, dst), t_gt = pair
     files = []
     for name, pts in (("src", src), ("dst", dst)):
         files.append(str(tmp_path / f"{name}.npy"))
         np.save(files[-1], pts)
     out = tmp_path / "ab"
-    register_cli.main([*files, "--adapt=0.1", f"--out={out}", "--keypoints=2000"])
+    register_cli.main([*files, "--adapt=0.1", f"--out={out}", "--keypoints=2000",
+                       "--method=lead@compass"])
     printed = capsys.readouterr().out
     assert "adaptation" in printed and "registered" in printed
-    adapted = out / "adapted" / "lead_pn" / "bundle"
-    assert (adapted / "MODEL_CARD.md").is_file()
+    assert (out / "adapted" / "compass" / "bundle" / "MODEL_CARD.md").is_file()
+    assert not (out / "adapted" / "lead").exists()
     t = np.loadtxt(out / "transform.txt")
     rre, rte = registration.rre_rte(t, t_gt)
     assert rre < 5 and rte < 0.10
     with pytest.raises(sphere_jax.SphereJaxError, match="no network to adapt"):
         align.register(src, dst, method="fpfh", adapt=1)
+
+
+def test_only_methods_with_learned_frames_adapt():
+    """``adapt`` fine-tunes learned frames; LEAD-PN and LEAD in FLARE frames are refused
+    before any work (their reconstruction fine-tune did not help their matching)."""
+    p = np.random.default_rng(0).uniform(0, 1, (500, 3))
+    for method in ("lead_pn", "lead@flare"):
+        with pytest.raises(sphere_jax.SphereJaxError, match="adapt must be used with a method "
+                                                            "whose frames are learned .lead@"
+                                                            "compass, sound"):
+            align.register(p, p, method=method, adapt=1)
+    assert align.frame_kinds(registry.resolve("lead@compass")) == ("compass",)
+    assert align.frame_kinds(registry.resolve("sound")) == ("sound",)
