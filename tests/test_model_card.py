@@ -197,7 +197,7 @@ def test_the_targets_table_says_what_is_met_and_by_how_much(tmp_path):
 def test_publishing_a_run_again_replaces_only_its_own_section(tmp_path):
     """docs/results.md keeps one section per run folder: a rerun's publish replaces its
     section in place and leaves the others (their folders may be long gone); ``fresh`` writes
-    only the runs given."""
+    only the runs given; ``drop`` removes a section by its key."""
     path = _compass_bundle(tmp_path / "bundle", 1)
     recorded = {"path": str(path), "steps_done": 1}
     a, b = (_lrf_run(tmp_path, name, f"/data/{name}", recorded) for name in ("a", "b"))
@@ -209,8 +209,13 @@ def test_publishing_a_run_again_replaces_only_its_own_section(tmp_path):
     assert "| a again |" in text and "| a |" not in text and "| b |" in text
     assert text.index("/data/a") < text.index("/data/b")            # in its place
     assert text.count("<!-- section:") == 2
-    publish.publish([b], results=results, fresh=True)
-    assert "/data/a" not in open(results).read()
+    key = publish.run_key(a)
+    publish.publish([], results=results, drop=[key])
+    assert "/data/a" not in open(results).read() and "| b |" in open(results).read()
+    with pytest.raises(ValueError, match=f"--drop: no section '{key}'"):
+        publish.publish([], results=results, drop=[key])
+    publish.publish([a], results=results, fresh=True)
+    assert "/data/b" not in open(results).read()
 
 
 def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_path):
