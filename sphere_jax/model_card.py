@@ -16,6 +16,7 @@ from __future__ import annotations
 import datetime
 import json
 import os
+import re
 
 from sphere_jax import bundle, files
 
@@ -74,14 +75,25 @@ def plot_curve(lines, path, title):
         fig.savefig(tmp)
 
 
+def _workdir(command):
+    """The ``--workdir`` a recorded evaluation command names (None without one)."""
+    found = re.search(r"--workdir=(\S+)", command or "")
+    return found.group(1) if found else None
+
+
 def add_evaluation(bundle_dir, name, table_markdown, command, date=None):
-    """Record an evaluation's figures for this bundle (replacing an earlier run of ``name``)
+    """Record an evaluation's figures for this bundle — replacing an earlier run of ``name``
+    and any earlier run in the same workdir (rerun on moved data, it has another name) —
     and render the card again."""
     path = os.path.join(str(bundle_dir), EVALUATIONS)
     evaluations = {}
     if os.path.isfile(path):
         with open(path) as f:
             evaluations = json.load(f)
+    workdir = _workdir(command)
+    if workdir:
+        evaluations = {k: v for k, v in evaluations.items()
+                       if _workdir(v.get("command")) != workdir}
     evaluations[name] = {"command": command, "table": table_markdown,
                          "date": date or datetime.date.today().isoformat()}
     bundle.write_json(path, json.dumps(evaluations, indent=1, sort_keys=True))

@@ -264,3 +264,17 @@ def test_a_compass_target_is_met_by_the_declared_adaptation(tmp_path):
     bunny = rows["Compass: LRF repeatability ≥ 1× FLARE's on the bunny"]
     assert bunny == ("0.200 against 0.400 (0.50×); adapted on the scans first: 0.440 (1.10×)",
                      True)
+
+
+def test_a_rerun_in_the_same_workdir_replaces_its_card_entry(tmp_path):
+    """A run's card entry is named by its title and data; rerun in the same workdir on data
+    that moved, it replaces its old entry instead of standing beside it."""
+    path = _compass_bundle(tmp_path / "bundle", 1)
+    for root in ("/old/place", "runs/new_place"):
+        model_card.add_evaluation(path, f"LRF repeatability on {root}", "| x |",
+                                  f"python -m experiments.evaluate --config.data.root={root} "
+                                  f"--workdir=runs/lrf")
+    model_card.add_evaluation(path, "LRF repeatability on /elsewhere", "| y |",
+                              "python -m experiments.evaluate --workdir=runs/other")
+    card = (path / model_card.CARD).read_text()
+    assert "on runs/new_place" in card and "/old/place" not in card and "/elsewhere" in card
