@@ -208,8 +208,8 @@ def method_bundles(method: registry.Method, bundle=None):
 def frame_kinds(method: registry.Method) -> tuple[str, ...]:
     """The bundle kinds whose learned frames ``method`` uses (Compass, SOUND): what ``adapt``
     fine-tunes. Adapting the frames raised LEAD (Compass)'s inlier ratio on the bunny's scans
-    and on redkitchen; adapting LEAD's or LEAD-PN's reconstruction did not help its matching
-    (the adaptation tables of docs/results.md)."""
+    and on redkitchen (and lowered it on LiDAR rescans); adapting LEAD's or LEAD-PN's
+    reconstruction never helped their matching (the adaptation tables of docs/results.md)."""
     from sphere_jax import models
     return tuple(k for k in method.needs if models.spec(k).orient is not None)
 
