@@ -2,13 +2,14 @@
 LEAD-PN's reconstruction, Compass's and SOUND's frame consistency) on your scans, for a number
 of minutes or steps, stopping early when the loss on held-back keypoints stops improving.
 
-    python -m experiments.adapt --bundle=lead --data=SCANS --minutes=10 --workdir=runs/lead_mine
+    python -m experiments.adapt --bundle=compass --data=SCANS --minutes=10 --workdir=runs/mine
 
 ``--data``: folders or scan files (PLY, PCD, XYZ, ...), comma-separated; no pose or ground
 truth is read. The scale is chosen from the scans as ``experiments.register`` chooses it
 (``--voxel``/``--radius`` to set it). The adapted bundle is written to ``WORKDIR/bundle``, its
-model card naming the scans; ``register --bundle=WORKDIR/bundle`` uses it, and re-running the
-same command resumes.
+model card naming the scans; ``register --method=lead@compass --bundle=WORKDIR/bundle`` uses
+it, and re-running the same command resumes. What adapting each kind measured:
+docs/training.md.
 """
 from __future__ import annotations
 
