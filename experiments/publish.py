@@ -85,7 +85,7 @@ def stamp(record) -> str:
 def headline_table(run_dir) -> str:
     """Method rows of a registration run's means: FMR, inlier ratio, correct matches, RR,
     description time."""
-    rows = mean_rows(run_dir).values()
+    rows = report.read_means(run_dir, "results").values()
     out = ["| method | " + " | ".join(h for _, h, _ in HEADLINE) + " |",
            "|---" * (len(HEADLINE) + 1) + "|"]
     for r in rows:
@@ -111,11 +111,6 @@ def section(record, markdown) -> str:
     title, body = split_title(record, markdown)
     body = re.sub(r"^# ", "### ", body, flags=re.M)
     return f"## {title} on {data_of(record)}\n\n{stamp(record)}\n{body}\n"
-
-
-def mean_rows(run_dir) -> dict:
-    """``{method: mean row}`` of a registration run's ``results.csv``."""
-    return report.read_means(run_dir, "results")
 
 
 # What an adaptation section compares, per task: (column, label, format); the change is that

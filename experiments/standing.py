@@ -1,8 +1,8 @@
 """Where the shipped models stand against the project's accuracy targets on the redkitchen
 scans: a table computed from five evaluation runs' mean rows (``experiments.publish
 --targets=MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY[,LRF_KITCHEN_ADAPTED,LRF_BUNNY_ADAPTED]``),
-so that the README's statement of
-what is met and by how much a target is missed follows the runs.
+so that the README's statement of what is met and by how much a target is missed follows the
+runs.
 
 The runs: the registration benchmark on the 14 3DMatch pairs, on the 13 3DLoMatch pairs and on
 the 3DMatch pairs rotated, and the LRF repeatability on redkitchen and on the bunny (with
