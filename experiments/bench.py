@@ -21,6 +21,7 @@ from absl import app, flags
 
 from experiments import cli
 from experiments.benchmarks import SUITES, common
+from sphere_jax import checks
 
 flags.DEFINE_enum("suite", "layers", SUITES, "which benchmark suite to run")
 flags.DEFINE_string("sizes", "small,paper", "models/train suites: config sizes, comma-separated")
@@ -36,6 +37,8 @@ def main(argv):
     if len(argv) > 1:
         raise app.UsageError(f"unexpected arguments {argv[1:]}")
     f = flags.FLAGS
+    for flag in ("keypoints", "batch", "repeats"):            # before any suite's set-up
+        checks.positive(getattr(f, flag), f"--{flag}", integer=True)
     suite = importlib.import_module(f"experiments.benchmarks.{f.suite}")
     repeats = min(f.repeats, 3) if f.suite in ("models", "train") else f.repeats
     records = suite.run(batch=f.batch, repeats=repeats, only=f.only, keypoints=f.keypoints,

@@ -164,8 +164,12 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
 
     min_inliers = checks.non_negative(min_inliers, "min_inliers", integer=True)
     min_fitness = checks.fraction(min_fitness, "min_fitness")
-    fail = functools.partial(Registration, np.eye(4), 0, 0, np.nan, np.nan, voxel, radius,
-                             method, seconds)
+    icp = checks.flag(icp, "icp")
+
+    def fail(reason, matches=0):
+        return Registration(np.eye(4), 0, matches, np.nan, np.nan, voxel, radius, method,
+                            seconds, reason)
+
     few = [(name, len(p)) for name, p in (("source", source), ("target", target))
            if len(p) < MIN_POINTS]
     if few:

@@ -162,7 +162,7 @@ class Bundle:
         out = self.describe_clouds([(points, keypoints)], radius, chunk, seed,
                                    None if frames is None else [frames], workers,
                                    on_invalid)[0]
-        if not as_open3d:
+        if not checks.flag(as_open3d, "as_open3d"):
             return out
         if on_invalid == "mask":
             return open3d_feature(out[0]), out[1]
@@ -216,6 +216,9 @@ def bundle_path(name_or_path) -> str:
     name = os.fspath(name_or_path)
     if name in paths.SHIPPED and not os.path.isdir(name):
         return paths.shipped_bundle(name, required=True)
+    if os.sep not in name and not os.path.exists(name):     # a word: meant as a kind
+        raise checks.InputError("bundle", f"a bundle folder or one of {', '.join(paths.SHIPPED)}",
+                                f"{name!r}, which is neither")
     return name
 
 

@@ -191,6 +191,13 @@ def rotations(frames, count, name="frames", tol=ROTATION_TOL) -> np.ndarray:
     return a.astype(np.float32)
 
 
+def flag(value, name) -> bool:
+    """A bool (numpy's too): a string such as ``"no"`` would otherwise read as true."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(name, "True or False", shown(value))
+    return bool(value)
+
+
 def choice(value, name, options):
     if value not in options:
         raise InputError(name, "one of " + ", ".join(map(repr, options)), repr(value))

@@ -100,6 +100,12 @@ def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
     lost = sphere_jax.register(src, far, method="fpfh", voxel=0.02, radius=0.3, n_keypoints=500)
     assert not lost.ok and ("consensus" in lost.reason or "fitness" in lost.reason), lost.reason
     assert lost.summary().startswith("FAILED: ")
+    line = np.c_[np.linspace(0, 1, 2000), np.zeros((2000, 2))]    # one descriptor everywhere
+    flat = sphere_jax.register(line, line, method="fpfh")
+    assert not flat.ok and flat.reason.endswith("mutual matches (RANSAC needs 3)"), flat.reason
+    assert flat.matches < 3
+    with pytest.raises(sphere_jax.SphereJaxError, match="icp must be True or False; got str"):
+        sphere_jax.register(src, dst, method="fpfh", icp="no")
     np.save(tmp_path / "a.npy", np.eye(3))
     with pytest.raises(SystemExit) as out:
         register_cli.main([str(tmp_path / "a.npy"), str(tmp_path / "a.npy"), "--method=fpfh"])

@@ -94,6 +94,7 @@ CLOUD = np.random.default_rng(1).uniform(-1, 1, (3000, 3)).astype(np.float32)
     (dict(points=np.array([[np.nan, 0, 0]] + [[0, 0, 0]] * 9)), "non-finite point"),
     (dict(points=np.zeros(30)), r"points must be a float array \[N, 3\]"),
     (dict(on_invalid="skip"), "on_invalid must be one of 'raise', 'mask'; got 'skip'"),
+    (dict(seed=-1), "seed must be a non-negative integer; got -1"),
 ])
 def test_api_refuses_bad_arguments_before_any_work(sound_bundle, kwargs, message):
     args = dict(points=CLOUD, keypoints=np.arange(4))
@@ -226,6 +227,8 @@ def test_open3d_clouds_in_and_features_out_for_open3d_ransac():
         kp = kp[valid]
         feature = sphere_jax.describe("lead_pn", pcd, kp, as_open3d=True)
         assert feature.dimension() == 512 and feature.num() == len(kp)
+        with pytest.raises(sphere_jax.SphereJaxError, match="as_open3d must be True or False"):
+            sphere_jax.describe("lead_pn", pcd, kp[:2], as_open3d="yes")
         if k == 0:                         # the same numbers from numpy and a tensor cloud
             tensor = o3d.t.geometry.PointCloud(o3d.core.Tensor(pts.astype(np.float32)))
             np.testing.assert_allclose(sphere_jax.describe("lead_pn", tensor, kp),

@@ -78,6 +78,12 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     (["experiments.publish"], "publish: error: nothing to publish"),
     (["experiments.make_data", "--lidar=/nonexistent"],
      "make_data: error: /nonexistent: no cloud_bin_K.ply fragments to scan"),
+    (["experiments.make_data", "--pack=embedded:0", "--out=README.md"],
+     "make_data: error: out_dir README.md/0-embedded_0 cannot be created: Not a directory"),
+    (["experiments.bench", "--suite=describe", "--keypoints=0"],
+     "bench: error: --keypoints must be a positive integer; got 0"),
+    (["experiments.adapt", "--bundle=fpfh", "--data=x", "--workdir=w"],
+     "adapt: error: bundle must be a bundle folder or one of compass, lead"),
 ])
 def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
     """Each main's arguments (bundles, scans, files) are read before any work; a bad one is
@@ -85,7 +91,7 @@ def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_
     extra = {"experiments.adapt": [f"--workdir={tmp_path / 'w'}"],
              "experiments.make_data": [f"--out={tmp_path / 'w'}"],
              "experiments.register": [f"--out={tmp_path / 'w'}"]}.get(args[0], [])
-    if args[-1] == "--bundle=lead":
+    if args[-1] == "--bundle=lead" or any(a.startswith("--out=") for a in args):
         extra = []
     out = run(*args, *extra)
     assert out.returncode == 2, out.stderr

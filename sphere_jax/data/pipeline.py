@@ -13,7 +13,7 @@ import re
 import numpy as np
 from sklearn.neighbors import KDTree
 
-from sphere_jax import checks, paths
+from sphere_jax import checks, paths, workdirs
 from sphere_jax.data import augment, evaluation_scenes, fusion, patches, poses
 from sphere_jax.data.readers import io, ply, rgbd
 from sphere_jax.data.generators import synthetic
@@ -450,8 +450,7 @@ def pack_scans(roots, voxel, out_dir):
     written = {}
     for k, (name, group) in enumerate(zip(names, scan_groups(roots))):
         slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", os.path.basename(name.rstrip("/")) or name)
-        folder = os.path.join(out_dir, f"{k}-{slug}")
-        os.makedirs(folder, exist_ok=True)
+        folder = workdirs.prepare(os.path.join(out_dir, f"{k}-{slug}"), "out_dir")
         index = {"voxel": voxel, "scans": {}}
         for i, path in enumerate(group):
             file = f"scan_{i:03d}.ply"

@@ -23,6 +23,7 @@ class SupportStream:
     random stream, so the chunking does not change the patches)."""
 
     def __init__(self, points, keypoints, radius, n_points, seed, min_support):
+        seed = checks.non_negative(seed, "seed", integer=True)
         self.points = checks.cloud(points)
         idx, coords = checks.keypoints(keypoints, len(self.points))
         self.centres = self.points[idx] if coords is None else coords

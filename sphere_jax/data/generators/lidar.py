@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 
-from sphere_jax import checks, files
+from sphere_jax import checks, files, workdirs
 from sphere_jax.data.readers import io, ply, threedmatch
 
 
@@ -109,8 +109,8 @@ def scan_fragments(fragment_dir, out_dir, lidar: Lidar = Lidar(), seed=0):
     ks = threedmatch.fragment_indices(fragment_dir)
     if not ks:
         raise checks.MissingError(f"{fragment_dir}: no cloud_bin_K.ply fragments to scan")
-    out = os.path.join(str(out_dir), os.path.basename(fragment_dir))
-    os.makedirs(out, exist_ok=True)
+    out = workdirs.prepare(os.path.join(str(out_dir), os.path.basename(fragment_dir)),
+                           "out_dir")
     counts = {}
     for k in ks:
         rng = np.random.default_rng([seed, k])
