@@ -99,6 +99,14 @@ def headline_table(run_dir) -> str:
     return "\n".join(out)
 
 
+def diagnostic(record) -> bool:
+    """Whether a registration run reads the ground truth for a method (``lead_gt``, ...)."""
+    from sphere_jax.features import registry
+    methods = str(record.get("config", {}).get("methods") or "").split(",")
+    return any(registry.resolve(m).kind == "diagnostic" for m in methods
+               if m.strip() and record.get("task") == "registration")
+
+
 def split_title(record, markdown):
     """``(title, body)`` of a run's markdown: its first heading, else the task's name."""
     lines = markdown.strip().splitlines()
@@ -267,10 +275,13 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
         for kind, b in record.get("bundles", {}).items():
             path = b["path"] if os.path.isabs(b["path"]) else os.path.join(REPO, b["path"])
             if os.path.isdir(path) and same_bundle(b, path):
-                # One entry per task and data: redkitchen and the bunny share a title.
+                # One entry per task and data (redkitchen and the bunny share a title); a
+                # diagnostic run beside the benchmark, not instead of it.
                 title, body = split_title(record, md)
-                model_card.add_evaluation(path, f"{title} on {data_of(record)}", body,
-                                          record.get("command") or "", record["date"])
+                name = f"{title} on {data_of(record)}" + (
+                    ", ground-truth frames" if diagnostic(record) else "")
+                model_card.add_evaluation(path, name, body, record.get("command") or "",
+                                          record["date"])
     return results
 
 

@@ -3,6 +3,7 @@ card states its command, steps, data and validation curve; an evaluation's run r
 docs' section, the README's headline block and the cards' evaluation sections follow it."""
 import csv
 import json
+import os
 
 import jax.numpy as jnp
 import ml_collections
@@ -87,6 +88,23 @@ def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
     card = (path / model_card.CARD).read_text()
     assert "### LRF repeatability on /data/kitchen" in card
     assert "### LRF repeatability on /data/bunny" in card
+
+
+def test_a_ground_truth_diagnostic_run_sits_beside_the_benchmark_on_the_card(tmp_path):
+    """``lead_gt`` on the benchmark's data has the benchmark's title: its card entry is its
+    own, and the benchmark's stays."""
+    path = _compass_bundle(tmp_path / "bundle", 1)
+    recorded = {"compass": {"path": str(path), "steps_done": 1}}
+    bench = _registration_run(tmp_path, "bench", recorded, {"lead": (0.2, 200, 1.0)})
+    diag = _registration_run(tmp_path, "diag", recorded, {"lead_gt": (0.5, 400, 1.0)})
+    for run, methods in ((bench, "fpfh,lead"), (diag, "lead,lead_gt")):
+        record = json.loads(open(os.path.join(run, "run.json")).read())
+        record["config"]["methods"] = methods
+        open(os.path.join(run, "run.json"), "w").write(json.dumps(record))
+    publish.publish([bench, diag], results=str(tmp_path / "results.md"))
+    card = (path / model_card.CARD).read_text()
+    assert "evaluate bench" in card and "evaluate diag" in card
+    assert "### Registration benchmark on /data/bunny, ground-truth frames" in card
 
 
 def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
