@@ -46,6 +46,7 @@ class _SphericalConv(nn.Module):
         output's spectrum out (the fused inference path of :mod:`fused`)."""
         spectral = isinstance(x, fused.Spectrum)
         kind = "SO(3)" if self.on_so3 else "S2"
+        checks.positive(self.features, f"{type(self).__name__}.features", integer=True)
         if spectral:
             if x.on_so3 != self.on_so3 or x.bandwidth != self.b_in:
                 raise ValueError(f"{type(self).__name__} expects the spectrum of an {kind} grid "

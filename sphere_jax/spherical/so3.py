@@ -77,6 +77,9 @@ def geodesic_distance(a_x33, b_x33):
 
     Differentiable everywhere: the cosine is clipped slightly inside ±1.
     """
+    shapes = tuple(np.shape(a_x33)), tuple(np.shape(b_x33))
+    if any(s[-2:] != (3, 3) for s in shapes):
+        raise ValueError(f"a_x33 and b_x33 must be rotations [..., 3, 3]; got shapes {shapes}")
     cos = (jnp.einsum("...ij,...ij->...", a_x33, b_x33) - 1.0) / 2.0
     return jnp.arccos(jnp.clip(cos, -_COS_CLIP, _COS_CLIP))
 

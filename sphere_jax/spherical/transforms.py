@@ -150,23 +150,33 @@ def so3_tables(b: int, lmax: int):
 # transposes, and these orders make the cheapest ones.
 # ----------------------------------------------------------------------------------------------
 
+def _layout(x, name, form, ok):
+    """A trace-time check of an internal layout: a wrong one would fail deep in an einsum."""
+    if not ok(tuple(x.shape)):
+        raise ValueError(f"{name} must have shape {form}; got {tuple(x.shape)}")
+
+
 def s2_analysis(x_XxJxA, lmax: int):
     """Real S2 signals ``[X, 2B, 2B]`` -> spectrum ``[L, L, 2, X]`` (layout above)."""
-    b = x_XxJxA.shape[-1] // 2
+    _layout(x_XxJxA, "x_XxJxA", "[X, 2B, 2B]", lambda s: len(s) == 3)
+    b, lmax = check_sizes(grid_bandwidth(x_XxJxA, 2, "x_XxJxA"), lmax)
     y = jnp.einsum("xja,arm->mjrx", x_XxJxA, forward_dft(b, lmax, False))
     return jnp.einsum("mjrx,mlj->mlrx", y, s2_tables(b, lmax)[0])
 
 
 def s2_synthesis(h_MxLx2xX, b: int):
     """Spectrum ``[L, L, 2, X]`` -> real S2 signals ``[X, 2B, 2B]``."""
-    lmax = h_MxLx2xX.shape[0]
+    _layout(h_MxLx2xX, "h_MxLx2xX", "[L, L, 2, X]",
+            lambda s: len(s) == 4 and s[0] == s[1] and s[2] == 2)
+    b, lmax = check_sizes(b, h_MxLx2xX.shape[0])
     g = jnp.einsum("mlrx,mlj->mjrx", h_MxLx2xX, s2_tables(b, lmax)[1])
     return jnp.einsum("mjrx,mra->xja", g, inverse_dft(b, lmax, False))
 
 
 def so3_analysis(x_XxJxAxG, lmax: int):
     """Real SO(3) signals ``[X, 2B, 2B, 2B]`` -> spectrum ``[2L-1, L, L, 2, X]``."""
-    b = x_XxJxAxG.shape[-1] // 2
+    _layout(x_XxJxAxG, "x_XxJxAxG", "[X, 2B, 2B, 2B]", lambda s: len(s) == 4)
+    b, lmax = check_sizes(grid_bandwidth(x_XxJxAxG, 3, "x_XxJxAxG"), lmax)
     y = jnp.einsum("xjag,grn->xjarn", x_XxJxAxG, forward_dft(b, lmax, False))    # γ
     y = jnp.einsum("xjarn,arsm->smnxj", y, forward_dft(b, lmax, True))           # α
     return jnp.einsum("smnxj,mnlj->mnlsx", y, so3_tables(b, lmax)[0])            # β
@@ -174,7 +184,9 @@ def so3_analysis(x_XxJxAxG, lmax: int):
 
 def so3_synthesis(h_MxNxLx2xX, b: int):
     """Spectrum ``[2L-1, L, L, 2, X]`` -> real SO(3) signals ``[X, 2B, 2B, 2B]``."""
-    lmax = h_MxNxLx2xX.shape[1]
+    _layout(h_MxNxLx2xX, "h_MxNxLx2xX", "[2L-1, L, L, 2, X]",
+            lambda s: len(s) == 5 and s[0] == 2 * s[1] - 1 and s[1] == s[2] and s[3] == 2)
+    b, lmax = check_sizes(b, h_MxNxLx2xX.shape[1])
     g = jnp.einsum("mnlsx,mnlj->mnsxj", h_MxNxLx2xX, so3_tables(b, lmax)[1])     # β
     g = jnp.einsum("mnsxj,msar->nxjar", g, inverse_dft(b, lmax, True))           # α
     return jnp.einsum("nxjar,nrg->xjag", g, inverse_dft(b, lmax, False))         # γ

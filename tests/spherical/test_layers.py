@@ -115,6 +115,8 @@ def test_bad_inputs():
         layers.S2Conv(features=2, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x)
     with pytest.raises(ValueError, match=r"SO\(3\) grid \[N, C, 2B, 2B, 2B\]"):
         layers.SO3Conv(features=2, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x[:, 0])
+    with pytest.raises(ValueError, match="SO3Conv.features must be a positive integer; got 0"):
+        layers.SO3Conv(features=0, b_in=4, b_out=4).init(jax.random.PRNGKey(0), x)
 
 
 def test_parameters_of_another_channel_count_are_named():

@@ -94,6 +94,17 @@ def test_bad_inputs():
         transforms.so3_ifft(np.zeros((4, 6, 4), np.complex64))
     with pytest.raises(ValueError, match="lmax=5 exceeds"):
         transforms.s2_ifft(np.zeros((5, 5), np.complex64), 3)
+    # The internal real layouts, which the layers call directly: our message, not einsum's.
+    with pytest.raises(ValueError, match=r"x_XxJxA must have shape \[X, 2B, 2B\]; got \(8, 8\)"):
+        transforms.s2_analysis(jnp.zeros((8, 8)), 4)
+    with pytest.raises(ValueError, match="lmax=9 exceeds"):
+        transforms.so3_analysis(jnp.zeros((1, 8, 8, 8)), 9)
+    with pytest.raises(ValueError, match=r"h_MxLx2xX must have shape \[L, L, 2, X\]"):
+        transforms.s2_synthesis(jnp.zeros((4, 3, 2, 1)), 4)
+    with pytest.raises(ValueError, match=r"h_MxNxLx2xX must have shape \[2L-1, L, L, 2, X\]"):
+        transforms.so3_synthesis(jnp.zeros((4, 4, 4, 2, 1)), 4)
+    with pytest.raises(ValueError, match=r"must be rotations \[\.\.\., 3, 3\]"):
+        so3.geodesic_distance(jnp.eye(3), jnp.ones((4, 3)))
 
 
 @pytest.mark.parametrize("rot, message", [
