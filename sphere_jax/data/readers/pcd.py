@@ -92,6 +92,17 @@ def read_pcd(path) -> Cloud:
         arr = np.frombuffer(raw, dtype, n, pos)
         cols = {name: arr[name] for name in fields}
     elif mode == "binary_compressed":
+        # open3d decodes the LZF block, but returns uninitialised points from a block whose
+        # sizes disagree with the header: check them first.
+        row = sum(sz * c for sz, c in zip(sizes, counts))
+        sizes_of_block = np.frombuffer(raw, "<u4", 2, pos) if len(raw) - pos >= 8 else None
+        if sizes_of_block is None or int(sizes_of_block[1]) != n * row \
+                or len(raw) - pos - 8 < int(sizes_of_block[0]):
+            found = ("no block header" if sizes_of_block is None else
+                     f"a block of {int(sizes_of_block[0])} compressed bytes for "
+                     f"{int(sizes_of_block[1])}, {len(raw) - pos - 8} present")
+            raise DataError(path, f"binary_compressed data must hold POINTS {n} × {row} = "
+                                  f"{n * row} bytes; found {found} (truncated or corrupt?)")
         return _read_with_open3d(path)
     else:
         raise DataError(path, f"unknown PCD DATA mode {mode!r}")

@@ -50,6 +50,18 @@ def test_ply_pcd_round_trips(tmp_path):
     back = io.read_pcd(tmp_path / "b.pcd")
     assert back.points.tolist() == [[1, 2, 3]] and back.dropped == 1   # NaN row dropped, counted
 
+    # binary_compressed (LZF) as PCL and open3d write it; cut short, it is refused, not read
+    # as the uninitialised points open3d returns for it.
+    import open3d as o3d
+    o3d.io.write_point_cloud(str(tmp_path / "c.pcd"), o3d.geometry.PointCloud(
+        o3d.utility.Vector3dVector(pts.astype(np.float64))), compressed=True)
+    raw = (tmp_path / "c.pcd").read_bytes()
+    assert b"DATA binary_compressed" in raw
+    np.testing.assert_allclose(io.read_pcd(tmp_path / "c.pcd").points, pts, atol=1e-6)
+    (tmp_path / "d.pcd").write_bytes(raw[:raw.index(b"binary_compressed\n") + 26])
+    with pytest.raises(io.DataError, match="binary_compressed data must hold POINTS 100 × 12"):
+        io.read_pcd(tmp_path / "d.pcd")
+
 
 def _write(tmp_path, name, data):
     path = tmp_path / name
