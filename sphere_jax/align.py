@@ -66,6 +66,7 @@ class Registration:
     method: str
     seconds: dict           # per stage
     reason: str = ""        # why it failed; '' when it succeeded
+    adaptation: str = ""    # what adapting the frames did (register(adapt=...)), per network
 
     @property
     def ok(self) -> bool:
@@ -79,7 +80,8 @@ class Registration:
                if np.isfinite(self.fitness) else "no ICP")
         return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "
                 f"{self.matches} mutual matches, {self.inliers} RANSAC inliers; {icp}\n"
-                f"voxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}")
+                f"voxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}"
+                + (f"\nadapted {self.adaptation}" if self.adaptation else ""))
 
 
 def middle_side(points_Nx3) -> float:
@@ -183,14 +185,16 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if few:
         return fail(reason="too few points on the voxel grid: " + ", ".join(
             f"{n} has {k} at voxel {voxel:.4g}" for n, k in few) + f" (at least {MIN_POINTS})")
+    note = ""
     with contextlib.ExitStack() as stack:        # a temporary folder lives while it is used
         if adapt:
             folder = adapt_workdir or stack.enter_context(tempfile.TemporaryDirectory())
-            bundles = adapted_bundles(method, bundles, source, target, voxel, radius, adapt,
-                                      folder)
+            bundles, note = adapted_bundles(method, bundles, source, target, voxel, radius,
+                                            adapt, folder)
             lap("adaptation")
-        return _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers,
-                      min_fitness, seconds, lap, fail)
+        return dataclasses.replace(_match(src, dst, method, bundles, voxel, radius, seed, icp,
+                                          min_inliers, min_fitness, seconds, lap, fail),
+                                   adaptation=note)
 
 
 def method_bundles(method: registry.Method, bundle=None):
@@ -230,13 +234,14 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     for name, points in (("source", source), ("target", target)):
         scans.append(os.path.join(workdir, f"{name}.npy"))
         np.save(scans[-1], np.asarray(points, np.float32))
-    out = dict(bundles)
+    out, notes = dict(bundles), []
     for kind in kinds:
         trained = api.load_bundle(bundles[kind])
         out[kind], _ = training.adapt(trained, ",".join(scans), None,
                                       os.path.join(workdir, kind), minutes=minutes / len(kinds),
                                       data=adaptation.data_at_scale(trained, voxel, radius))
-    return out
+        notes.append(adaptation.outcome(out[kind]))
+    return out, "; ".join(notes)
 
 
 def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min_fitness,

@@ -2,6 +2,7 @@
 truth by the shipped LEAD-PN, the same pair at 10× the scale by the automatic scale, and the
 command line's outputs."""
 import os
+import re
 
 import numpy as np
 import pytest
@@ -133,6 +134,9 @@ def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
                        "--method=lead@compass"])
     printed = capsys.readouterr().out
     assert "adaptation" in printed and "registered" in printed
+    # What the adaptation did, from the adapted bundle's own log.
+    assert re.search(r"adapted compass: \d+ steps, validation loss [\d.]+ (at the start|->)",
+                     printed), printed
     assert (out / "adapted" / "compass" / "bundle" / "MODEL_CARD.md").is_file()
     assert not (out / "adapted" / "lead").exists()
     t = np.loadtxt(out / "transform.txt")

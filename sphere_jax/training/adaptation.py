@@ -8,7 +8,7 @@ import os
 
 import ml_collections
 
-from sphere_jax import checks, models
+from sphere_jax import bundle, checks, model_card, models
 from sphere_jax.training import loop
 
 # Without a step count, a time budget decides: the steps are capped by this.
@@ -100,3 +100,20 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     _, last = loop.train_and_evaluate(config, workdir, progress,
                                       init_variables=trained.variables)
     return os.path.join(workdir, "bundle"), last
+
+
+def outcome(bundle_dir) -> str:
+    """What an adaptation did, in one line, from its bundle's own log and config: the steps
+    run, the validation loss at the start and at the weights the bundle kept."""
+    config = bundle.read_config(bundle_dir)
+    steps, curves = model_card.validation_curve(
+        model_card.read_metrics(os.path.join(str(bundle_dir), model_card.METRICS)))
+    val, best = curves.get("val_loss") or [], config.train.get("best_step")
+    head = f"{config.model}: {config.train.get('steps_done')} steps"
+    if not val or steps[0] != 0 or best not in steps:
+        return head
+    start, kept = val[0], val[steps.index(best)]
+    if best == 0:
+        return (f"{head}, validation loss {start:.4g} at the start and never lower: the "
+                f"starting weights kept")
+    return f"{head}, validation loss {start:.4g} -> {kept:.4g} (step {best}): those weights used"
