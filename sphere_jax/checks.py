@@ -220,7 +220,7 @@ CONFIG_RULES = {
     "data.min_points": (int, 0, True), "data.n_keypoints": (int, 1, True),
     "data.normal_k": (int, 3, True), "data.max_pairs": (int, 0, True),
     "data.val_fraction": (float, 0, True), "data.copy_jitter": (float, 0, True),
-    "infer_chunk": (int, 1, True),
+    "infer_chunk": (int, 1, True), "seed": (int, 0, True),
     "chunk": (int, 1, True), "adapt_steps": (int, 0, True),
     # evaluation thresholds: a negative or NaN one scores every method 0 without a word
     "tau1": (float, 0, False), "tau2": (float, 0, False), "rho": (float, 0, False),
@@ -229,7 +229,8 @@ CONFIG_RULES = {
     "fpfh_radius": (float, 0, False),
 }
 # field -> (upper bound, whether it is allowed), for the fields that have one
-UPPER = {"data.val_fraction": (1, False), "tau2": (1, True), "rho": (1, True)}
+UPPER = {"data.val_fraction": (1, False), "tau2": (1, True), "rho": (1, True),
+         "train.final_lr_fraction": (1, True)}
 NOTES = {"data.max_pairs": " (0: every pair)"}
 
 

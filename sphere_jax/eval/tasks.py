@@ -111,9 +111,15 @@ def check_bundles(config, names):
     chosen = bundle_paths(config)
     for kind in sorted(_kinds(names)):
         path = chosen.get(kind)
-        if path and not bundle.is_bundle(api.bundle_path(path)):
+        if not path:
+            continue
+        if not bundle.is_bundle(api.bundle_path(path)):
             raise checks.ConfigError(f"config.bundles.{kind}",
                                      "a bundle folder (with config.json)", path)
+        model = bundle.read_config(api.bundle_path(path)).model
+        if model != kind:
+            raise checks.ConfigError(f"config.bundles.{kind} must be a {kind} bundle; got "
+                                     f"{path!r}, a {model} bundle")
 
 
 def _kinds(names) -> set:
@@ -136,6 +142,10 @@ def method_names(config, known):
     :class:`~sphere_jax.checks.ConfigError` unless each is one of ``known``."""
     names = [_key(m) for m in config.methods.split(",") if m.strip()]
     bad = [m for m in names if m not in known]
+    twice = sorted({m for m in names if names.count(m) > 1})
+    if twice and not bad:
+        raise checks.ConfigError(f"config.methods must name each method once; got "
+                                 f"{config.methods!r} ({', '.join(twice)} more than once)")
     if bad or not names:
         raise checks.ConfigError(
             "config.methods", f"a comma-separated list of {', '.join(known)}"

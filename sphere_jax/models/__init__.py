@@ -18,6 +18,7 @@ from sphere_jax.models.lead import Lead, LeadOut
 from sphere_jax.models.lead_pn import LeadPN, LeadPNOut
 from sphere_jax.models.pointnet import PointNetEncoder
 from sphere_jax.models.sound import Sound, SoundOut
+from sphere_jax import checks
 from sphere_jax.models.spec import ModelSpec
 
 SPECS = {s.kind: s for s in (compass.SPEC, lead.SPEC, lead_pn.SPEC, sound.SPEC, classify.SPEC)}
@@ -26,7 +27,7 @@ SPECS = {s.kind: s for s in (compass.SPEC, lead.SPEC, lead_pn.SPEC, sound.SPEC, 
 def spec(kind: str) -> ModelSpec:
     """The spec of model kind ``kind`` (``config.model``)."""
     if kind not in SPECS:
-        raise ValueError(f"unknown model {kind!r}; the kinds are {', '.join(SPECS)}")
+        raise checks.ConfigError("config.model", f"one of {', '.join(SPECS)}", kind)
     return SPECS[kind]
 
 

@@ -65,6 +65,10 @@ def learning_rate_schedule(train):
     if kind == "constant":
         return optax.constant_schedule(peak)
     if kind == "warmup_cosine":
+        if int(train.warmup_steps) >= int(train.steps):       # no step would be at the peak
+            raise checks.ConfigError("config.train.warmup_steps",
+                                     f"below config.train.steps ({train.steps}) with the "
+                                     f"warmup_cosine schedule", train.warmup_steps)
         return optax.warmup_cosine_decay_schedule(
             0.0, peak, int(train.warmup_steps), int(train.steps),
             peak * float(train.final_lr_fraction))
@@ -188,7 +192,8 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     bundle records the steps done, so the same command with a later budget resumes.
     ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`)."""
     checks.config_values(config)
-    learning_rate_schedule(config.train)                # a bad schedule fails before any work
+    models.spec(config.model)                           # an unknown kind, before any work
+    learning_rate_schedule(config.train)                # so does a bad schedule
     check_roots(config)                                 # so does a data root that is not there
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
         return _train(config, workdir, progress, init_variables, command)
