@@ -27,7 +27,7 @@ import re
 
 from experiments import cli
 from sphere_jax.data.readers import io
-from sphere_jax.eval import report
+from sphere_jax.eval import report, repeatability
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(REPO, "docs", "results.md")
@@ -185,7 +185,7 @@ def adaptation_section(before_dir, after_dir) -> str:
         out.append(f"| {method} | " + " | ".join(row) + " |")
     adapted = [adaptation_line(kind, path)
                for kind, path in adapted_bundles(before, after, after_dir).items()]
-    title = split_title(after, md)[0].split(",")[0]       # its own adaptation is said below
+    title = split_title(after, md)[0].split(repeatability.ADAPTED)[0]   # said below instead
     if title[1:2].islower():                                 # "registration", not "lRF"
         title = title[0].lower() + title[1:]
     return (f"## Adaptation without labels: {title} on {data_of(after)}"

@@ -77,7 +77,7 @@ def plot_curve(lines, path, title):
 
 def _workdir(command):
     """The ``--workdir`` a recorded evaluation command names (None without one)."""
-    found = re.search(r"--workdir=(\S+)", command or "")
+    found = re.search(r"--workdir[= ](\S+)", command or "")
     return found.group(1) if found else None
 
 

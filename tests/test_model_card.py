@@ -254,7 +254,12 @@ def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_p
         "model": "compass", "data": {"root": "/data/bunny", "voxel": 0.001, "radius": 0.015},
         "train": {"steps": 50, "steps_done": 50, "best_step": 50, "batch_size": 2,
                   "learning_rate": 1e-4}}), {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    from sphere_jax.eval import repeatability
+    with open(f"{after}/lrf_results.md", "w") as f:         # the title the adapting run writes
+        f.write(f"# LRF repeatability (rotated){repeatability.ADAPTED} (50 steps, no ground "
+                f"truth read)\n")
     text = publish.adaptation_section(before, after)
+    assert "## Adaptation without labels: LRF repeatability (rotated) on /data/bunny" in text
     assert "| method | repeatability: before | after | change | mean angle (degrees): " \
            "before | after |" in text
     assert "| compass | 0.200 | 0.300 | +50% | 90.0 | 70.5 |" in text
@@ -294,5 +299,8 @@ def test_a_rerun_in_the_same_workdir_replaces_its_card_entry(tmp_path):
                                   f"--workdir=runs/lrf")
     model_card.add_evaluation(path, "LRF repeatability on /elsewhere", "| y |",
                               "python -m experiments.evaluate --workdir=runs/other")
+    model_card.add_evaluation(path, "LRF repeatability on /moved", "| z |",       # absl takes
+                              "python -m experiments.evaluate --workdir runs/other")  # both forms
     card = (path / model_card.CARD).read_text()
-    assert "on runs/new_place" in card and "/old/place" not in card and "/elsewhere" in card
+    assert "on runs/new_place" in card and "/old/place" not in card and "/elsewhere" not in card
+    assert "on /moved" in card

@@ -25,6 +25,9 @@ from sphere_jax.training import adaptation
 METHODS = method_lib.LRFS
 RHO = 0.97
 
+# How a run that adapts declares it in its title (publish's comparison strips it again).
+ADAPTED = ", learned frames adapted on the evaluation scans first"
+
 
 class FrameCache:
     """Frames of one method per scan, computed once per point whatever the number of pairs
@@ -174,8 +177,7 @@ def run(config, workdir, progress=True):
     rows = [dict(method=r.method, scene=r.scene, **r.summary) for r in results]
     variant = " (rotated)" if config.rotate else ""
     if config.adapt_steps:          # declared in the title: adapted on the scans it scores
-        variant += (f", learned frames adapted on the evaluation scans first "
-                    f"({config.adapt_steps} steps, no ground truth read)")
+        variant += f"{ADAPTED} ({config.adapt_steps} steps, no ground truth read)"
     md = report.write_tables(workdir, rows, report.LRF_COLUMNS,
                              report.titled(report.LRF_TABLES, rho=config.rho), "lrf_results",
                              f"LRF repeatability{variant}")
