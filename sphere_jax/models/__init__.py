@@ -11,6 +11,7 @@ Models take patches normalised to the unit ball (local coordinates divided by th
 radius) and compute their spherical signals themselves, so that the inference API and the
 training step share one code path.
 """
+from sphere_jax import checks
 from sphere_jax.models import classify, compass, lead, lead_pn, sound
 from sphere_jax.models.classify import ClassifyOut, PointNetClassifier
 from sphere_jax.models.compass import Compass, CompassOut
@@ -18,7 +19,6 @@ from sphere_jax.models.lead import Lead, LeadOut
 from sphere_jax.models.lead_pn import LeadPN, LeadPNOut
 from sphere_jax.models.pointnet import PointNetEncoder
 from sphere_jax.models.sound import Sound, SoundOut
-from sphere_jax import checks
 from sphere_jax.models.spec import ModelSpec
 
 SPECS = {s.kind: s for s in (compass.SPEC, lead.SPEC, lead_pn.SPEC, sound.SPEC, classify.SPEC)}
