@@ -121,6 +121,10 @@ def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
     named = r"another data \({'copy_draw': 'patch'}\) than this config's \({'copy_draw': 'support'}"
     with pytest.raises(checks.ConfigError, match=named):
         training.train_and_evaluate(other, str(tmp_path / "d"), progress=False)
+    # A finished workdir resumes and reads no bundle, but a mistyped one is still refused.
+    more.train.init_bundle = str(tmp_path / "nowhere")
+    with pytest.raises(checks.SphereJaxError, match="nowhere: not a bundle"):
+        training.train_and_evaluate(more, str(tmp_path / "b"), progress=False)
 
 
 def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, tmp_path):

@@ -193,6 +193,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`)."""
     checks.config_values(config)
     models.spec(config.model)                           # an unknown kind, before any work
+    for field in ("init_bundle", "finetune_bundle"):     # a resumed run reads neither, but a
+        if config.train.get(field):                      # wrong path is still a typo to say
+            bundle.read_config(config.train[field])
     learning_rate_schedule(config.train)                # so does a bad schedule
     check_roots(config)                                 # so does a data root that is not there
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
