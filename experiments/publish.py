@@ -115,10 +115,18 @@ def split_title(record, markdown):
     return record["task"], "\n".join(lines)
 
 
+def heading(record, title) -> str:
+    """A run's name in docs/results.md and on model cards: its table title and data, and
+    whether it reads the ground truth for a diagnostic (then it stands beside the benchmark
+    run of the same data, not in its place)."""
+    return (f"{title} on {data_of(record)}"
+            + (", with ground-truth-frame diagnostics" if diagnostic(record) else ""))
+
+
 def section(record, markdown) -> str:
     title, body = split_title(record, markdown)
     body = re.sub(r"^# ", "### ", body, flags=re.M)
-    return f"## {title} on {data_of(record)}\n\n{stamp(record)}\n{body}\n"
+    return f"## {heading(record, title)}\n\n{stamp(record)}\n{body}\n"
 
 
 # What an adaptation section compares, per task: (column, label, format); the change is that
@@ -183,12 +191,14 @@ def adaptation_section(before_dir, after_dir) -> str:
         for i, (key, _, fmt) in enumerate(compared):
             row += [cells(b, key, fmt), cells(a, key, fmt)] + ([change] if i == 0 else [])
         out.append(f"| {method} | " + " | ".join(row) + " |")
-    adapted = [adaptation_line(kind, path)
-               for kind, path in adapted_bundles(before, after, after_dir).items()]
+    kinds = adapted_bundles(before, after, after_dir)
+    adapted = [adaptation_line(kind, path) for kind, path in kinds.items()]
     title = split_title(after, md)[0].split(repeatability.ADAPTED)[0]   # said below instead
     if title[1:2].islower():                                 # "registration", not "lRF"
         title = title[0].lower() + title[1:]
-    return (f"## Adaptation without labels: {title} on {data_of(after)}"
+    names = sorted(kinds)
+    listed = " and ".join(filter(None, [", ".join(names[:-1]), names[-1]])) if names else "none"
+    return (f"## Adaptation without labels, {listed} adapted: {title} on {data_of(after)}"
             f"\n\nBefore: `{before.get('command')}`\n\nAfter: `{after.get('command')}`\n\n"
             f"Adapted bundles (no pose or ground truth read): " + "; ".join(adapted)
             + f". Runs {before['date']} and {after['date']}.\n\n" + "\n".join(out) + "\n")
@@ -278,10 +288,8 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
                 # One entry per task and data (redkitchen and the bunny share a title); a
                 # diagnostic run beside the benchmark, not instead of it.
                 title, body = split_title(record, md)
-                name = f"{title} on {data_of(record)}" + (
-                    ", ground-truth frames" if diagnostic(record) else "")
-                model_card.add_evaluation(path, name, body, record.get("command") or "",
-                                          record["date"])
+                model_card.add_evaluation(path, heading(record, title), body,
+                                          record.get("command") or "", record["date"])
     return results
 
 

@@ -104,7 +104,7 @@ def test_a_ground_truth_diagnostic_run_sits_beside_the_benchmark_on_the_card(tmp
     publish.publish([bench, diag], results=str(tmp_path / "results.md"))
     card = (path / model_card.CARD).read_text()
     assert "evaluate bench" in card and "evaluate diag" in card
-    assert "### Registration benchmark on /data/bunny, ground-truth frames" in card
+    assert "### Registration benchmark on /data/bunny, with ground-truth-frame diagnostics" in card
 
 
 def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
@@ -259,7 +259,8 @@ def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_p
         f.write(f"# LRF repeatability (rotated){repeatability.ADAPTED} (50 steps, no ground "
                 f"truth read)\n")
     text = publish.adaptation_section(before, after)
-    assert "## Adaptation without labels: LRF repeatability (rotated) on /data/bunny" in text
+    assert "## Adaptation without labels, compass adapted: LRF repeatability (rotated) on " \
+           "/data/bunny" in text
     assert "| method | repeatability: before | after | change | mean angle (degrees): " \
            "before | after |" in text
     assert "| compass | 0.200 | 0.300 | +50% | 90.0 | 70.5 |" in text
