@@ -15,7 +15,11 @@ def test_stages_chain_to_the_networks_output(kind):
     x = (rng.normal(size=(4, bundle.config.data.n_points, 3)) * 0.4).astype(np.float32)
     frames = np.broadcast_to(np.eye(3, dtype=np.float32), (4, 3, 3))
     parts, final = stages.stages(bundle, x, frames)
-    whole = bundle._orient_fn(x) if kind == "compass" else bundle._describe_fn(x, frames)
+    whole = {"compass": lambda: bundle._orient_fn(x), "sound": lambda: bundle._describe_fn(x),
+             "lead": lambda: bundle._describe_fn(x, frames)}[kind]()
     assert np.max(np.abs(np.asarray(final) - np.asarray(whole))) < 1e-4
     assert [p.name for p in parts][:2] == ["signal", "S2 analysis"]
-    assert sum("pointwise" in p.name for p in parts) == len(bundle.model.features) - 1
+    m = bundle.model
+    steps = (1 + len(m.descriptor_features) - 1 + len(m.lrf_features) - 1 if kind == "sound"
+             else len(m.features) - 1)           # SOUND: the shared layer's and each branch's
+    assert sum("pointwise" in p.name for p in parts) == steps

@@ -1,11 +1,13 @@
 """Stages suite: where a shipped spherical network spends its time, stage by stage.
 
-For the shipped Compass and LEAD (``--only`` to pick one), on one chunk of real patches (as
-``describe`` streams them) of a 3DMatch fragment (redkitchen 0; a synthetic room's without the real scans), each stage of the
-fused network jitted on its own and timed warm (median of ``--repeats``): the patch signal,
-the S2 analysis, and per layer the spectral product and the pointwise step (synthesis on the
-layer's grid, batch norm, ReLU, analysis to the next bandwidth), then the last synthesis and
-what reads the map (Compass's soft-argmax, LEAD's rotation to its frame). Each row: ms per
+For the shipped Compass, LEAD and SOUND (``--only`` to pick one), on one chunk of real
+patches (as ``describe`` streams them) of a 3DMatch fragment (redkitchen 0; a synthetic room's
+without the real scans), each stage of the fused network jitted on its own and timed warm
+(median of ``--repeats``): the patch signal, the S2 analysis, and per layer the spectral
+product and the pointwise step (synthesis on the layer's grid, batch norm, ReLU, analysis to
+the next bandwidth), then the last synthesis and what reads the map (Compass's soft-argmax,
+LEAD's rotation to its frame; SOUND: its shared layer, then each branch, its soft-argmax and
+the rotation of its map to that frame). Each row: ms per
 keypoint, GFLOP per keypoint (XLA's cost analysis, lowered with one block so that every block
 counts) and the rate against this run's float32 matmul peak. ``whole`` is the bundle's jitted
 network in one call; the stages' outputs are checked against it.
@@ -20,7 +22,7 @@ import jax
 from experiments.benchmarks import common
 from sphere_jax.parallel import DEFAULT_CHUNK
 
-KINDS = ("compass", "lead")
+KINDS = ("compass", "lead", "sound")
 CHUNK = DEFAULT_CHUNK           # patches per call, as `describe` streams them
 
 
@@ -31,77 +33,108 @@ class Stage:
     args: tuple
 
 
-def _stack(bundle):
-    """``(SphericalStack attributes, its variables)`` of a Compass or LEAD bundle."""
-    model = bundle.model
-    name = "encoder" if "encoder" in bundle.variables["params"] else "SphericalStack_0"
-    variables = {k: v[name] for k, v in bundle.variables.items()}
+def _stack(model, variables, name):
+    """``(attributes, variables)`` of the :class:`SphericalStack` ``name`` of a bundle."""
     return dict(features=tuple(model.features), bandwidths=tuple(model.bandwidths),
-                grid=getattr(model, "grid", "near_identity"),
-                n_shells=model.n_shells), variables
+                grid=getattr(model, "grid", "near_identity")), \
+        {k: v[name] for k, v in variables.items()}
 
 
-def _affine(variables, i, spectrum):
-    """Inference batch norm ``(scale [C], shift [C])`` of layer ``i``: the model's own
-    :class:`layers.GridBatchNorm` applied to the layer's output ``spectrum``."""
+def _affine(variables, name, spectrum):
+    """Inference batch norm ``(scale [C], shift [C])``: the model's own
+    :class:`layers.GridBatchNorm` ``name`` applied to the layer's output ``spectrum``."""
     from sphere_jax.spherical import layers
-    name = f"GridBatchNorm_{i}"
     return layers.GridBatchNorm().apply({k: v[name] for k, v in variables.items()}, spectrum,
                                         False)
 
 
+def _layers(step, attrs, variables, spec, s2_first=True, tag=""):
+    """The stages of one stack's layers on ``spec`` = ``(coefficients, channels, B, on SO(3))``
+    (a spectrum at the stack's ``bandwidths[1]``); returns its last synthesis, the maps."""
+    from sphere_jax.spherical import correlation, fused
+    bw, feats = attrs["bandwidths"], attrs["features"]
+    last = len(feats) - 1
+
+    def product(c, w, c_in, b_in, on_so3, grid, b_out):
+        return fused.correlate(fused.Spectrum(c, c_in, b_in, on_so3), w, grid, b_out)
+
+    for i, c_out in enumerate(feats):
+        s2 = i == 0 and s2_first
+        conv = "S2Conv_0" if s2 else f"SO3Conv_{i - 1 if s2_first else i}"
+        w = variables["params"][conv]["kernel"]
+        c_in, b_in, on_so3 = spec[1:]
+        kw = dict(c_in=c_in, b_in=b_in, on_so3=on_so3, b_out=bw[i + 1],
+                  grid=correlation.make_grid(attrs["grid"], not s2, bw[i]))
+        label = f"{tag}layer {i}: {'S2' if s2 else 'SO(3)'} {b_in}->{bw[i + 1]}, {c_in}->{c_out}"
+        if s2:           # an S2 product stays factored; the pointwise step forms it per block
+            h, h_in = (lambda c, w=w, kw=kw: product(c, w, **kw)), spec[0]
+        else:
+            h_in = step(f"{label}, product", lambda c, w, kw=kw: product(c, w, **kw).coeffs,
+                        spec[0], w)
+            h = lambda c, ch=c_out, b=bw[i + 1]: fused.Spectrum(c, ch, b, True)
+        scale, shift = _affine(variables, f"GridBatchNorm_{i}", h(h_in))
+        if i < last:
+            coeffs = step(f"{label}, pointwise to L={bw[i + 2]}",
+                          lambda c, sc, sh, h=h, i=i: fused.pointwise(h(c), sc, sh,
+                                                                      bw[i + 2]).coeffs,
+                          h_in, scale, shift)
+            spec = (coeffs, c_out, bw[i + 1], True)
+        else:
+            return step(f"{tag}last synthesis", lambda c, sc, sh, h=h: (
+                fused.synthesise(h(c)) * sc[:, None, None, None] + sh[:, None, None, None]
+            )[:, 0], h_in, scale, shift)
+
+
 def stages(bundle, patches, frames=None):
-    """The fused network of ``bundle`` (Compass or LEAD) as :class:`Stage` s, each run once on
-    ``patches`` to feed the next; returns ``(stages, final output)``."""
+    """The fused network of ``bundle`` (Compass, LEAD or SOUND) as :class:`Stage` s, each run
+    once on ``patches`` to feed the next; returns ``(stages, final output)``. SOUND: its
+    shared S2 layer, then the descriptor branch and the LRF branch, each from the shared
+    spectrum truncated to its bandwidth (untimed: a slice)."""
     from sphere_jax.spherical import correlation, fused, signal, soft_argmax
     from sphere_jax.models.lead import canonical_descriptors
-    attrs, variables = _stack(bundle)
-    bw, feats = attrs["bandwidths"], attrs["features"]
-    out = []
+    model, variables, out = bundle.model, bundle.variables, []
 
     def step(name, fn, *args):
         fn = jax.jit(fn)
         out.append(Stage(name, fn, args))
         return jax.block_until_ready(fn(*args))
 
-    x = step("signal", lambda p: signal.patch_signals(p, 1.0, bw[0], attrs["n_shells"]), patches)
+    argmax = jax.vmap(lambda m: soft_argmax.soft_argmax_rotation(m, model.temperature,
+                                                                 model.window))
+    if bundle.kind == "sound":
+        b0, b1 = model.s2_bandwidths
+        x = step("signal", lambda p: signal.patch_signals(p, 1.0, b0, model.n_shells), patches)
+        coeffs = step("S2 analysis", lambda s: fused.analyse(s, b1, False).coeffs, x)
+        w = variables["params"]["s2"]["kernel"]
+        lmax = max(model.descriptor_bandwidths[1], model.lrf_bandwidths[1])
+        c_out = model.s2_features
+        h = lambda c: fused.correlate(fused.Spectrum(c, x.shape[1], b0, False), w,
+                                      correlation.make_grid("near_identity", False, b0), b1)
+        scale, shift = _affine(variables, "s2_norm", h(coeffs))
+        shared = step(f"shared layer: S2 {b0}->{b1}, {x.shape[1]}->{c_out}, pointwise to "
+                      f"L={lmax}", lambda c, sc, sh: fused.pointwise(h(c), sc, sh, lmax).coeffs,
+                      coeffs, scale, shift)
+        maps = {}
+        for branch, bws, feats in (("descriptor", model.descriptor_bandwidths,
+                                    model.descriptor_features),
+                                   ("lrf", model.lrf_bandwidths, model.lrf_features)):
+            attrs = dict(features=tuple(feats), bandwidths=tuple(bws), grid="near_identity")
+            start = fused.truncate(fused.Spectrum(shared, c_out, b1, True), bws[1])
+            maps[branch] = _layers(step, attrs, {k: v[branch] for k, v in variables.items()},
+                                   (start.coeffs, c_out, b1, True), s2_first=False,
+                                   tag=f"{branch} ")
+        rot = step("lrf soft-argmax", argmax, maps["lrf"])
+        return out, step("rotation to its own frame", canonical_descriptors, maps["descriptor"],
+                         rot)
+    name = "encoder" if "encoder" in variables["params"] else "SphericalStack_0"
+    attrs, stack_vars = _stack(model, variables, name)
+    bw = attrs["bandwidths"]
+    x = step("signal", lambda p: signal.patch_signals(p, 1.0, bw[0], model.n_shells), patches)
     coeffs = step("S2 analysis", lambda s: fused.analyse(s, bw[1], False).coeffs, x)
-    spec = (coeffs, x.shape[1], bw[0], False)           # coefficients, channels, B, on SO(3)
-    last = len(feats) - 1
-    for i, c_out in enumerate(feats):
-        w = variables["params"][("S2Conv_0" if i == 0 else f"SO3Conv_{i - 1}")]["kernel"]
-        grid = correlation.make_grid(attrs["grid"], i > 0, bw[i])
-        c_in, b_in, on_so3 = spec[1:]
-        kw = dict(c_in=c_in, b_in=b_in, on_so3=on_so3, grid=grid, b_out=bw[i + 1])
-
-        def product(c, w, c_in, b_in, on_so3, grid, b_out):
-            return fused.correlate(fused.Spectrum(c, c_in, b_in, on_so3), w, grid, b_out)
-
-        label = f"layer {i}: {'S2' if i == 0 else 'SO(3)'} {b_in}->{bw[i + 1]}, {c_in}->{c_out}"
-        if i == 0:       # an S2 product stays factored; the pointwise step forms it per block
-            h, h_in = (lambda c, w=w, kw=kw: product(c, w, **kw)), spec[0]
-        else:
-            h_in = step(f"{label}, product", lambda c, w, kw=kw: product(c, w, **kw).coeffs,
-                       spec[0], w)
-            h = lambda c, ch=c_out, b=bw[i + 1]: fused.Spectrum(c, ch, b, True)
-        scale, shift = _affine(variables, i, h(h_in))
-        if i < last:
-            coeffs = step(f"{label}, pointwise to L={bw[i + 2]}",
-                         lambda c, sc, sh, h=h, i=i: fused.pointwise(h(c), sc, sh,
-                                                                     bw[i + 2]).coeffs,
-                         h_in, scale, shift)
-            spec = (coeffs, c_out, bw[i + 1], True)
-        else:
-            maps = step("last synthesis", lambda c, sc, sh, h=h: (
-                fused.synthesise(h(c)) * sc[:, None, None, None] + sh[:, None, None, None]
-            )[:, 0], h_in, scale, shift)
+    maps = _layers(step, attrs, stack_vars, (coeffs, x.shape[1], bw[0], False))
     if bundle.kind == "compass":
-        model = bundle.model
-        final = step("soft-argmax", jax.vmap(lambda m: soft_argmax.soft_argmax_rotation(
-            m, model.temperature, model.window)), maps)
-    else:
-        final = step("rotation to the frame", canonical_descriptors, maps, frames)
-    return out, final
+        return out, step("soft-argmax", argmax, maps)
+    return out, step("rotation to the frame", canonical_descriptors, maps, frames)
 
 
 def run(repeats=5, only=None, **_):
@@ -120,8 +153,9 @@ def run(repeats=5, only=None, **_):
         x = np.asarray(stream.make(0, min(CHUNK, stream.n))[0], np.float32)
         frames = np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3))
         parts, final = stages(bundle, x, frames)
-        whole = Stage("whole", bundle._orient_fn, (x,)) if kind == "compass" else \
-            Stage("whole", bundle._describe_fn, (x, frames))
+        whole = Stage("whole", *{"compass": (bundle._orient_fn, (x,)),
+                                 "lead": (bundle._describe_fn, (x, frames)),
+                                 "sound": (bundle._describe_fn, (x,))}[kind])
         expected = jax.block_until_ready(whole.fn(*whole.args))
         err = float(np.max(np.abs(np.asarray(final) - np.asarray(expected))))
         if err > 1e-4:
