@@ -42,6 +42,8 @@ def run(*args, cwd=ROOT):
      "evaluate: error: config.bundles.compass must be a compass bundle; got "),
     (["experiments.evaluate", "--config=eval_registration", "--config.methods=lead,shot,lead"],
      "evaluate: error: config.methods must name each method once; got 'lead,shot,lead' (lead "),
+    (["experiments.evaluate", "--config=eval_registration", "--config.data.root=docs"],
+     "evaluate: error: config.data.root: docs: no Stanford .conf, no cloud_bin_K.ply"),
     (["experiments.evaluate", "--config=eval_registration", "--config.seed=-1"],
      "evaluate: error: config.seed must be an integer >= 0; got -1"),
     (["experiments.train", "--config=lead:tiny", "--config.model=pointnet2"],

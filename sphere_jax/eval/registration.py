@@ -231,6 +231,9 @@ def _describer(name, config, bundles):
     return method_lib.descriptor(name, radius, bundles, config.fpfh_radius, chunk)
 
 
+check_data = scene_lib.check_data          # the data root, before any work (tasks.run)
+
+
 def run(config, workdir, progress=True):
     """Descriptor benchmark: returns ``(rows, markdown)``; writes results.{csv,md} and
     fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the

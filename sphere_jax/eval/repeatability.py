@@ -138,6 +138,9 @@ def adapted_bundles(config, bundles, names, workdir, progress):
     return out
 
 
+check_data = scene_lib.check_data          # the data root, before any work (tasks.run)
+
+
 def run(config, workdir, progress=True):
     """LRF repeatability benchmark: returns ``(rows, markdown)``; writes lrf_results.{csv,md}
     and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir`` (scenes split over the

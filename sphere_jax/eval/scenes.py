@@ -92,24 +92,35 @@ def find_pair_sets(root, voxel=0.02, min_overlap=0.10, gt_root=None):
     with ``gt_root``, from there: :func:`scene_gt_dir`). A scene is any folder with at least one
     ``cloud_bin_K.ply``; pairs whose clouds are absent are skipped with a warning."""
     root = os.path.normpath(str(root))
+    confs, dirs = scan_sets_under(root, gt_root)
+    if confs:
+        return [stanford_scans(c, voxel, min_overlap) for c in confs]
+    gt = (lambda d: None) if gt_root is None else (
+        lambda d: scene_gt_dir(str(gt_root), os.path.basename(d)))
+    return [fragment_scene(threedmatch.load_fragment_scene(d, gt(d))) for d in dirs]
+
+
+def scan_sets_under(root, gt_root=None):
+    """``(Stanford .conf files, 3DMatch scene folders)`` under ``root`` by their names alone
+    (nothing is read), so an evaluation can refuse a root without scans before any work;
+    :class:`~sphere_jax.checks.MissingError` when there is neither."""
+    root = os.path.normpath(str(root))
     if not os.path.isdir(root):
         raise checks.MissingError(f"data root {root!r} is not a folder")
     if gt_root is not None and not os.path.isdir(str(gt_root)):
         raise checks.MissingError(f"data.gt={gt_root!r} is not a folder")
-    gt = (lambda d: None) if gt_root is None else (
-        lambda d: scene_gt_dir(str(gt_root), os.path.basename(d)))
     confs = sorted(glob.glob(os.path.join(root, "*.conf")) +
                    glob.glob(os.path.join(root, "*", "*.conf")))
     if confs:
-        return [stanford_scans(c, voxel, min_overlap) for c in confs]
+        return confs, []
     if glob.glob(os.path.join(root, "cloud_bin_*.ply")):
-        return [fragment_scene(threedmatch.load_fragment_scene(root, gt(root)))]
+        return [], [root]
     dirs = sorted({os.path.dirname(p) for p in glob.glob(os.path.join(root, "*",
                                                                         "cloud_bin_*.ply"))})
     if not dirs:
         raise checks.MissingError(f"{root}: no Stanford .conf, no cloud_bin_K.ply fragments and "
-                                f"no scene folders holding them")
-    return [fragment_scene(threedmatch.load_fragment_scene(d, gt(d))) for d in dirs]
+                                  f"no scene folders holding them")
+    return [], dirs
 
 
 def rotations_for(pair_set: PairSet, seed):
@@ -160,6 +171,17 @@ def data_root(config):
     if config.data.root:
         return config.data.root
     return pipeline.default_scan_root()
+
+
+def check_data(config):
+    """:class:`~sphere_jax.checks.ConfigError` when ``config.data.root`` (or ``data.gt``) holds
+    no scan set: checked by :func:`sphere_jax.eval.tasks.run` before the workdir is claimed
+    (the embedded default is generated on first use, not checked)."""
+    if config.data.get("root"):
+        try:
+            scan_sets_under(config.data.root, config.data.get("gt") or None)
+        except checks.MissingError as e:
+            raise checks.ConfigError(f"config.data.root: {e}") from None
 
 
 def pair_sets(config):

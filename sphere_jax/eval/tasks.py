@@ -49,6 +49,8 @@ def run(config, workdir, progress=True, command=None):
     checks.config_values(config)
     if hasattr(module, "METHODS"):                # names and bundles, before any work
         check_bundles(config, method_names(config, module.METHODS))
+    if hasattr(module, "check_data"):             # and a data root without scans
+        module.check_data(config)
     start = time.perf_counter()
     # Results kept by an interrupted run (eval/resume.py): its wall time is not this run's.
     if hasattr(module, "kept"):                   # a task that keeps its own kind of work
