@@ -8,14 +8,13 @@ are generated from the runs' own files, so a rerun updates them.
 Each RUN_DIR is an ``experiments.evaluate`` workdir (its ``run.json`` says the command, the
 bundles and the date; its markdown and CSV hold the tables). ``docs/results.md`` has one
 section per run, keyed by its folder: a run published again replaces its own section, the
-others stay but those ``--drop`` names (``--fresh``: only the runs given, in their order). ``--headline`` (a
-registration run) replaces the table between the README's ``headline`` markers; every bundle
-a run used gets the run's table in its model card
+others stay but those ``--drop`` names (``--fresh``: only the runs given, in their order).
+``--headline`` (a registration run) replaces the table between the README's ``headline``
+markers; every bundle a run used gets the run's table in its model card
 (:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with the shipped
 bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
 ``adapt_steps``): a section compares them method by method and says what each bundle adapted
-on, for how long.
-``--targets`` fills the README's ``targets`` block: the accuracy targets, measured and met or
+on, for how long. ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured and met or
 not (:mod:`experiments.standing`).
 """
 from __future__ import annotations
@@ -102,9 +101,10 @@ def headline_table(run_dir) -> str:
 def diagnostic(record) -> bool:
     """Whether a registration run reads the ground truth for a method (``lead_gt``, ...)."""
     from sphere_jax.features import registry
+    if record.get("task") != "registration":
+        return False
     methods = str(record.get("config", {}).get("methods") or "").split(",")
-    return any(registry.resolve(m).kind == "diagnostic" for m in methods
-               if m.strip() and record.get("task") == "registration")
+    return any(registry.resolve(m).kind == "diagnostic" for m in methods if m.strip())
 
 
 def split_title(record, markdown):

@@ -91,7 +91,6 @@ def find_pair_sets(root, voxel=0.02, min_overlap=0.10, gt_root=None):
     folder of such scenes (ground truth in ``<scene>-evaluation/`` or beside the clouds, or,
     with ``gt_root``, from there: :func:`scene_gt_dir`). A scene is any folder with at least one
     ``cloud_bin_K.ply``; pairs whose clouds are absent are skipped with a warning."""
-    root = os.path.normpath(str(root))
     confs, dirs = scan_sets_under(root, gt_root)
     if confs:
         return [stanford_scans(c, voxel, min_overlap) for c in confs]
