@@ -26,8 +26,9 @@ def project_box(points_cam, intrinsics, margin=0):
 
 def unit_rows(desc_KxD):
     """Descriptors scaled to unit length, so one distance threshold serves every method (the
-    hand-crafted ones already are; learned ones are not)."""
-    d = np.asarray(desc_KxD, np.float32)
+    hand-crafted ones already are; learned ones are not). An undescribed keypoint's NaN row
+    becomes zeros: at distance 1 from every unit descriptor, beyond the match thresholds."""
+    d = np.nan_to_num(np.asarray(desc_KxD, np.float32), nan=0.0)
     n = np.linalg.norm(d, axis=1, keepdims=True)
     return d / np.where(n > 0, n, 1.0)
 

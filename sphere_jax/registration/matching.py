@@ -5,18 +5,24 @@ import numpy as np
 
 
 def mutual_matches(desc_a_KxD, desc_b_KxD):
-    """Indices ``(ia, ib)`` of mutual nearest neighbours (Euclidean) between two sets."""
+    """Indices ``(ia, ib)`` of mutual nearest neighbours (Euclidean) between two sets. A row
+    that is not finite (a keypoint left undescribed: NaN) takes no part. A zero row would: at
+    distance 1 from every unit-length descriptor it becomes the nearest neighbour of all
+    those farther apart, and silently drops their matches."""
     desc_a_KxD, desc_b_KxD = np.asarray(desc_a_KxD), np.asarray(desc_b_KxD)
     if desc_a_KxD.ndim != 2 or desc_b_KxD.ndim != 2 or \
             desc_a_KxD.shape[1] != desc_b_KxD.shape[1]:
         raise ValueError(f"descriptors must be [K, D] with the same D, got {desc_a_KxD.shape} "
                          f"and {desc_b_KxD.shape}")
-    if len(desc_a_KxD) == 0 or len(desc_b_KxD) == 0:
+    rows_a = np.flatnonzero(np.isfinite(desc_a_KxD).all(1))
+    rows_b = np.flatnonzero(np.isfinite(desc_b_KxD).all(1))
+    if len(rows_a) == 0 or len(rows_b) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    ab = nearest(desc_a_KxD, desc_b_KxD)
-    ba = nearest(desc_b_KxD, desc_a_KxD)
-    ia = np.nonzero(ba[ab] == np.arange(len(desc_a_KxD)))[0]
-    return ia, ab[ia]
+    a, b = desc_a_KxD[rows_a], desc_b_KxD[rows_b]
+    ab = nearest(a, b)
+    ba = nearest(b, a)
+    ia = np.nonzero(ba[ab] == np.arange(len(a)))[0]
+    return rows_a[ia], rows_b[ab[ia]]
 
 
 def nearest(query_QxD, base_BxD, rows=1024):

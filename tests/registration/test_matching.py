@@ -1,4 +1,5 @@
-"""Mutual nearest neighbours: a hand-made case, and the blocked search against all distances."""
+"""Mutual nearest neighbours: a hand-made case, the blocked search against all distances, and
+undescribed (NaN) rows left out."""
 import numpy as np
 import pytest
 
@@ -21,3 +22,22 @@ def test_blocked_nearest_matches_the_full_distance_matrix():
     q, b = rng.normal(size=(300, 32)), rng.normal(size=(200, 32))
     full = np.argmin(np.linalg.norm(q[:, None] - b[None], axis=2), axis=1)
     assert np.array_equal(matching.nearest(q, b, rows=7), full)
+
+
+def test_undescribed_rows_never_match_where_a_zero_row_would_take_them():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(300, 84))                    # LEAD's 84 degrees of freedom
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = a + 0.2 * rng.normal(size=a.shape)            # noisy copies, often over 1 apart
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    ia, ib = matching.mutual_matches(a, b)
+    holed = a.copy()
+    holed[5] = np.nan                                  # keypoint 5: no descriptor
+    ja, jb = matching.mutual_matches(holed, b)
+    keep = ia != 5
+    assert np.array_equal(ja, ia[keep]) and np.array_equal(jb, ib[keep])
+    zeroed = a.copy()
+    zeroed[5] = 0                                      # the old fill: nearest to every far row
+    za, _ = matching.mutual_matches(zeroed, b)
+    assert len(za) < 0.5 * len(ja)                    # 115 of 281 here
+    assert len(matching.mutual_matches(np.full((3, 84), np.nan), b)[0]) == 0
