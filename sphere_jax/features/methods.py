@@ -57,8 +57,9 @@ def one_frame(rotation_3x3, k):
 
 def _masked(values_valid, fill):
     """Results of ``on_invalid='mask'`` with ``fill`` where a keypoint's support was too small
-    to describe (stray sensor points): zero descriptors, like the hand-crafted ones' empty
-    supports, and identity frames, which a repeatability test scores as it falls."""
+    to describe (stray sensor points): NaN descriptors, which never match
+    (:func:`~sphere_jax.registration.matching.mutual_matches`), and identity frames, which a
+    repeatability test scores as it falls."""
     values, valid = values_valid
     values[~valid] = fill
     return values
@@ -90,11 +91,12 @@ def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None)
             clouds = [(f.points, f.keypoints) for f in fs]
             frames = [_masked(o, np.eye(3)) for o in compass.orient_clouds(
                 clouds, radius=radius, chunk=chunk, on_invalid="mask")]
-            return [_masked(d, 0) for d in lead.describe_clouds(
-                clouds, radius=radius, chunk=chunk, frames=frames, on_invalid="mask")]
+            return [_masked(d, np.nan) for d in lead.describe_clouds(
+                clouds, radius=radius, chunk=chunk, frames=frames, on_invalid="mask",
+                whiten="compass" if "compass" in lead.whitenings else None)]
         return describe_all
     model = _bundle(bundles[name])
-    return lambda fs: [_masked(d, 0) for d in model.describe_clouds(
+    return lambda fs: [_masked(d, np.nan) for d in model.describe_clouds(
         [(f.points, f.keypoints) for f in fs], radius=radius, chunk=chunk, on_invalid="mask")]
 
 
@@ -141,7 +143,7 @@ def ground_truth_frames(name, radius, bundles=None, chunk=None) -> GroundTruthFr
         def describe(f, rot_3x3):
             return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
                                          frames=one_frame(rot_3x3, len(f.keypoints)),
-                                         on_invalid="mask"), 0)
+                                         on_invalid="mask"), np.nan)
 
     def describe_pair(f_i, f_j, t_4x4):
         return describe(f_i, np.eye(3)), describe(f_j, np.asarray(t_4x4)[:3, :3].T)
