@@ -8,7 +8,8 @@ The three calls most people need::
 
     import sphere_jax
     frames = sphere_jax.orient("compass", points, keypoints)        # [K, 3, 3], shipped Compass
-    desc = sphere_jax.describe("lead", points, keypoints, frames=frames)    # [K, 512]
+    desc = sphere_jax.describe("lead", points, keypoints, frames=frames,
+                               whiten="compass")      # [K, 512], whitened for Compass frames
     bundle = sphere_jax.load_bundle(path)    # a bundle folder (or kind), reused across calls
 
 Conventions (``sphere_jax/spherical/CONVENTIONS.md``): points are ``[N, 3]`` float arrays in metres,
@@ -74,7 +75,7 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
 
 
 def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
-             workers=None, on_invalid="raise", as_open3d=False):
+             workers=None, on_invalid="raise", as_open3d=False, whiten="auto"):
     """Rotation-invariant local descriptors from a LEAD, LEAD-PN or SOUND bundle.
 
     LEAD's SO(3) descriptor is turned to canonical pose by ``frames`` (``[K, 3, 3]``, e.g.
@@ -89,17 +90,21 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
       radius: support radius in metres (default: the bundle's).
       chunk, seed, workers, on_invalid: as in :func:`orient`.
       frames: optional LRFs for LEAD (rotations: orthonormal, det +1, within 1e-3).
+      whiten: the bundle's descriptor whitening, fitted on its training scans
+        (:mod:`sphere_jax.features.whitening`): ``"auto"`` the one for its own frames when
+        ``frames`` is None (none when frames are given), ``"compass"`` LEAD's for Compass
+        frames, None the network's raw output.
       as_open3d: return an ``open3d.pipelines.registration.Feature`` (``data [D, K]``), which
         open3d's ``registration_ransac_based_on_feature_matching`` and FGR take directly.
 
     Returns:
-      ``[K, D]`` float32 descriptors (D = 512 for the shipped bundles); compare them with the
-      Euclidean distance (e.g. mutual nearest neighbours,
+      ``[K, D]`` float32 descriptors (D = 512 for the shipped bundles; unit length when
+      whitened); compare them with the Euclidean distance (e.g. mutual nearest neighbours,
       :func:`sphere_jax.registration.mutual_matches`).
     """
     return _bundle(bundle).describe(points, keypoints, radius=radius, chunk=chunk, seed=seed,
                                     frames=frames, workers=workers, on_invalid=on_invalid,
-                                    as_open3d=as_open3d)
+                                    as_open3d=as_open3d, whiten=whiten)
 
 
 def register(source, target, method=None, voxel="auto", radius="auto", n_keypoints=None,

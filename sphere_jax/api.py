@@ -27,6 +27,7 @@ from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
 from sphere_jax.data.supports import (MIN_SUPPORT, StreamChain, SupportStream,
                                       extract_unit_patches)
+from sphere_jax.features import whitening as whitening_lib
 from sphere_jax.parallel import DEFAULT_CHUNK, run_chunked, stream_chunked
 from sphere_jax.models import flare
 
@@ -40,6 +41,8 @@ class Bundle:
     model: object
     variables: dict
     config: ml_collections.ConfigDict
+    # frame source -> descriptor whitening fitted on the training scans (features/whitening)
+    whitenings: dict = dataclasses.field(default_factory=dict)
 
     @property
     def kind(self):
@@ -153,15 +156,18 @@ class Bundle:
         return self._run(self._orient_fn, p.astype(np.float32), chunk, workers)
 
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
-                 workers=None, on_invalid="raise", as_open3d=False):
+                 workers=None, on_invalid="raise", as_open3d=False, whiten="auto"):
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
         ``frames`` (``[K, 3, 3]`` rotations, e.g. from a Compass bundle) or, by default,
         FLARE; LEAD-PN: the code of the FLARE-oriented patch; SOUND: self-oriented.
+        ``whiten``: the bundle's whitening for the frames used (:mod:`~sphere_jax.features.
+        whitening`) — ``"auto"`` its ``default`` one when ``frames`` is None and none when
+        frames are given, ``"compass"`` the one fitted in Compass frames, None raw values.
         ``on_invalid`` as in :meth:`orient`; ``as_open3d``: an
         ``open3d.pipelines.registration.Feature`` instead (open3d's RANSAC and FGR take it)."""
         out = self.describe_clouds([(points, keypoints)], radius, chunk, seed,
                                    None if frames is None else [frames], workers,
-                                   on_invalid)[0]
+                                   on_invalid, whiten)[0]
         if not checks.flag(as_open3d, "as_open3d"):
             return out
         if on_invalid == "mask":
@@ -169,18 +175,34 @@ class Bundle:
         return open3d_feature(out)
 
     def describe_clouds(self, clouds, radius=None, chunk=None, seed=0, frames=None,
-                        workers=None, on_invalid="raise"):
+                        workers=None, on_invalid="raise", whiten="auto"):
         """:meth:`describe` of several clouds ``[(points, keypoints), ...]`` (``frames``: None
         or one ``[K, 3, 3]`` per cloud) in one stream of chunks, as :meth:`orient_clouds`."""
         self._can("describe")
         checks.choice(on_invalid, "on_invalid", ON_INVALID)
+        white = self._whitening(whiten, frames is not None)
         chain = self._chain(clouds, radius, seed, on_invalid, frames)
         out = stream_chunked(self._describe_fn, chain.make, chain.n, self._chunk(chunk),
                              workers)
         if chain.n == 0:                          # nothing to describe: the width still counts
             unit = jax.ShapeDtypeStruct((1, self.config.data.n_points, 3), jnp.float32)
             out = np.zeros((0, *jax.eval_shape(self._describe_fn, unit).shape[1:]))
+        elif white is not None:
+            out = white.apply(out)
         return [s.scatter(o, None, on_invalid) for s, o in zip(chain.streams, chain.split(out))]
+
+    def _whitening(self, whiten, framed: bool):
+        """The :class:`~sphere_jax.features.whitening.Whitening` ``whiten`` names, or None."""
+        if whiten is None or whiten is False:
+            return None
+        checks.choice(whiten, "whiten", ("auto",) + whitening_lib.SOURCES)
+        if whiten == "auto":
+            return None if framed else self.whitenings.get("default")
+        if whiten not in self.whitenings:
+            raise checks.InputError("whiten", f"None, 'auto' or a whitening this {self.kind} "
+                                    f"bundle has ({', '.join(self.whitenings) or 'none'})",
+                                    repr(whiten))
+        return self.whitenings[whiten]
 
     # ---- jitted pieces ----------------------------------------------------------------------
 
@@ -238,7 +260,7 @@ def load_bundle(path) -> Bundle:
     expected = jax.eval_shape(functools.partial(model.init, train=False),
                               {"params": key, "dropout": key}, x)
     bundle_files.check_fits(path, variables, {k: expected.get(k, {}) for k in variables})
-    return Bundle(model, variables, config)
+    return Bundle(model, variables, config, whitening_lib.load(path))
 
 
 def cached_bundle(path) -> Bundle:

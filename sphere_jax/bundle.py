@@ -34,6 +34,7 @@ from sphere_jax.checks import BundleError
 CONFIG = "config.json"
 VARIABLES = "variables"
 TRAINING_DATA = "training_data.json"
+WHITENING = "whitening.npz"        # descriptor whitening (sphere_jax.features.whitening)
 
 
 def write_json(path, text):
@@ -211,19 +212,24 @@ def read_training_data(path) -> dict:
 
 
 def stamp(path):
-    """Changes when the bundle is rewritten (for caches keyed on the folder)."""
-    cfg = os.path.join(os.path.abspath(str(path)), CONFIG)
-    return os.stat(cfg).st_mtime_ns if os.path.isfile(cfg) else None
+    """Changes when the bundle is rewritten or its whitening refitted (for caches keyed on the
+    folder)."""
+    names = (CONFIG, WHITENING)
+    stats = [os.path.join(os.path.abspath(str(path)), n) for n in names]
+    stats = [os.stat(s).st_mtime_ns if os.path.isfile(s) else None for s in stats]
+    return None if stats[0] is None else tuple(stats)
 
 
 def fingerprint(path) -> str | None:
-    """A hash of what decides the bundle's outputs — its config and variables, not the model
-    card that evaluations complete — the same in any checkout (None: not a bundle)."""
+    """A hash of what decides the bundle's outputs — its config, variables and descriptor
+    whitening, not the model card that evaluations complete — the same in any checkout
+    (None: not a bundle)."""
     path = os.path.abspath(str(path))
     if not is_bundle(path):
         return None
     digest = hashlib.sha256()
-    files = [CONFIG] + sorted(
+    files = [CONFIG] + ([WHITENING] if os.path.isfile(os.path.join(path, WHITENING))
+                        else []) + sorted(
         os.path.relpath(os.path.join(root, name), path)
         for root, _, names in os.walk(os.path.join(path, VARIABLES)) for name in names)
     for rel in files:

@@ -19,6 +19,7 @@ import os
 import re
 
 from sphere_jax import bundle, files
+from sphere_jax.features import whitening
 
 CARD = "MODEL_CARD.md"
 CURVE = "validation_curve.png"
@@ -157,6 +158,10 @@ def render(bundle_dir):
                 f"{data['keypoints'].get('val')} held out for the validation loss"]
     scenes = data.get("evaluation_scenes", [])
     out += [f"- evaluation scenes in the training data: {', '.join(scenes) or 'none'}"]
+    for source, fit in whitening.read_statement(bundle_dir).items():
+        out += [f"- descriptor whitening `{source}` ({fit['frames']} frames): "
+                f"{fit['keypoints']} keypoints of {len(fit['scans'])} training scans, "
+                f"{fit['dimensions_kept']} directions kept; `{fit['command']}`"]
     steps, val = validation_curve(lines)
     if steps:
         out += ["", "## Validation curve", "", f"![validation curve]({CURVE})", ""]

@@ -100,6 +100,11 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
      "bench: error: --keypoints must be a positive integer; got 0"),
     (["experiments.adapt", "--bundle=fpfh", "--data=x", "--workdir=w"],
      "adapt: error: bundle must be a bundle folder or one of compass, lead"),
+    (["experiments.whiten", "--bundle=compass"],
+     "whiten: error: bundle must be a descriptor bundle (lead, lead_pn, sound)"),
+    (["experiments.whiten", "--bundle=lead", "--keypoints=0"],
+     "whiten: error: keypoints must be a positive integer; got 0"),
+    (["experiments.whiten", "--bundle=/nonexistent"], "whiten: error: bundle /nonexistent"),
 ])
 def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
     """Each main's arguments (bundles, scans, files) are read before any work; a bad one is

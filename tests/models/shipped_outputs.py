@@ -47,10 +47,15 @@ def compute():
     compass = sphere_jax.load_bundle(bundle("compass"))
     out["compass_orient"] = compass.orient(pts, kp, **kw)
     lead = sphere_jax.load_bundle(bundle("lead"))
-    out["lead_describe"] = lead.describe(pts, kp, **kw)
+    lead_pn = sphere_jax.load_bundle(bundle("lead_pn"))
+    # The networks' own outputs, and those outputs whitened as describe() gives them.
+    out["lead_describe"] = lead.describe(pts, kp, whiten=None, **kw)
     out["lead_compass_describe"] = lead.describe(pts, kp, frames=out["compass_orient"], **kw)
-    out["lead_pn_describe"] = sphere_jax.load_bundle(bundle("lead_pn")).describe(pts, kp,
-                                                                                     **kw)
+    out["lead_pn_describe"] = lead_pn.describe(pts, kp, whiten=None, **kw)
+    out["lead_describe_whitened"] = lead.describe(pts, kp, **kw)
+    out["lead_compass_describe_whitened"] = lead.describe(
+        pts, kp, frames=out["compass_orient"], whiten="compass", **kw)
+    out["lead_pn_describe_whitened"] = lead_pn.describe(pts, kp, **kw)
     sound = sphere_jax.load_bundle(bundle("sound"))
     out["sound_orient"] = sound.orient(pts, kp, **kw)
     out["sound_describe"] = sound.describe(pts, kp, **kw)

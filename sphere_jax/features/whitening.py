@@ -1,0 +1,117 @@
+"""Descriptor whitening: a linear map fitted once on a bundle's training scans, stored in it.
+
+A learned descriptor's dimensions vary on very different scales: LEAD's 512 values are a
+band-limited SO(3) map (84 spectral degrees of freedom at B = 4) whose principal variances span
+five orders of magnitude, so plain Euclidean nearest neighbours are decided by the few
+directions that vary most. Whitening — centre, turn to the principal axes, scale each to unit
+variance, turn back — and then unit length makes matching weigh every direction by how much it
+varies across training keypoints (a Mahalanobis distance). Directions with no variance (the
+descriptor's null space) are dropped; ``EPS`` · λ_max is added to every variance so that
+near-null directions are not blown up. Nothing about it is learned from labels.
+
+The statistics depend on the frames a descriptor is turned to, so a bundle keeps one whitening
+per frame source: ``default`` (the kind's own frames: FLARE for LEAD and LEAD-PN, its own for
+SOUND) and, for LEAD, ``compass`` (fitted with a Compass bundle's frames).
+
+Files in the bundle: ``whitening.npz`` (``{source}.mean`` ``[D]``, ``{source}.axes``
+``[D, k]``, ``{source}.scales`` ``[k]``, float32) and ``whitening.json`` (how each was fitted).
+"""
+from __future__ import annotations
+
+import dataclasses
+import io as bytes_io
+import json
+import os
+
+import numpy as np
+
+from sphere_jax import bundle, checks, files
+
+FILE = bundle.WHITENING
+STATEMENT = "whitening.json"
+SOURCES = ("default", "compass")
+EPS = 1e-5              # of the largest variance; 1e-6 .. 1e-4 measured within 0.01 IR
+NULL = 1e-9             # variances below NULL · λ_max are the descriptor's null space
+
+
+@dataclasses.dataclass(frozen=True)
+class Whitening:
+    """``apply(desc) = unit(((desc − mean) · axes / scales) · axesᵀ)``: the whitened
+    descriptor in the original coordinates (same width D), of unit length."""
+    mean: np.ndarray            # [D]
+    axes: np.ndarray            # [D, k] principal axes, orthonormal columns
+    scales: np.ndarray          # [k] sqrt(variance + EPS · λ_max)
+
+    def transform(self, desc_KxD):
+        """``[K, D]`` float64: whitened, before unit length (Euclidean distances between
+        these are Mahalanobis distances under the fitted covariance)."""
+        x = np.asarray(desc_KxD, np.float64)
+        if x.ndim != 2 or x.shape[1] != len(self.mean):
+            raise checks.InputError("descriptors", f"[K, {len(self.mean)}] (the width the "
+                                    "whitening was fitted on)", checks.shown(x))
+        return ((x - self.mean) @ self.axes / self.scales) @ self.axes.T
+
+    def apply(self, desc_KxD):
+        """``[K, D]`` whitened descriptors of unit length, float32; a NaN row (an undescribed
+        keypoint) stays NaN."""
+        y = self.transform(desc_KxD)
+        norm = np.linalg.norm(y, axis=1, keepdims=True)
+        return (y / np.maximum(norm, 1e-12)).astype(np.float32)
+
+
+def fit(desc_NxD, eps=EPS) -> Whitening:
+    """The whitening of descriptors ``[N, D]`` (N > D rows, all finite), in float64."""
+    x = np.asarray(desc_NxD, np.float64)
+    if x.ndim != 2 or len(x) <= x.shape[1] or not np.isfinite(x).all():
+        raise checks.InputError("desc_NxD", "finite descriptors [N, D] with N > D",
+                                checks.shown(x))
+    mean = x.mean(0)
+    variances, axes = np.linalg.eigh(np.cov((x - mean).T))
+    variances, axes = variances[::-1], axes[:, ::-1]
+    keep = variances > NULL * variances[0]
+    return Whitening(mean, axes[:, keep], np.sqrt(variances[keep] + eps * variances[0]))
+
+
+def save(bundle_dir, whitenings: dict, statement: dict):
+    """Write ``whitenings`` (source -> :class:`Whitening`) and how they were fitted into the
+    bundle folder, atomically; sources already there and not given are kept."""
+    unknown = set(whitenings) - set(SOURCES)
+    if unknown:
+        raise checks.InputError("whitenings", f"sources among {SOURCES}", sorted(unknown))
+    kept = load(bundle_dir)
+    kept.update(whitenings)
+    arrays = {f"{s}.{f.name}": np.asarray(getattr(w, f.name), np.float32)
+              for s, w in kept.items() for f in dataclasses.fields(w)}
+    buffer = bytes_io.BytesIO()
+    np.savez(buffer, **arrays)
+    files.atomic_write(os.path.join(bundle_dir, FILE), buffer.getvalue())
+    old = read_statement(bundle_dir)
+    old.update(statement)
+    files.atomic_write(os.path.join(bundle_dir, STATEMENT), json.dumps(old, indent=1))
+
+
+def load(bundle_dir) -> dict:
+    """``{source: Whitening}`` of a bundle folder (empty when it has none)."""
+    path = os.path.join(str(bundle_dir), FILE)
+    if not os.path.isfile(path):
+        return {}
+    try:
+        with np.load(path) as z:
+            arrays = {k: z[k].astype(np.float64) for k in z.files}
+    except Exception as e:
+        raise checks.BundleError(bundle_dir, f"its {FILE} does not read ({e})") from None
+    sources = sorted({k.split(".")[0] for k in arrays})
+    try:
+        return {s: Whitening(arrays[f"{s}.mean"], arrays[f"{s}.axes"], arrays[f"{s}.scales"])
+                for s in sources}
+    except KeyError as e:
+        raise checks.BundleError(bundle_dir, f"its {FILE} lacks {e}") from None
+
+
+def read_statement(bundle_dir) -> dict:
+    """``whitening.json``: per source, the scans, keypoints and frames it was fitted on."""
+    path = os.path.join(str(bundle_dir), STATEMENT)
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)

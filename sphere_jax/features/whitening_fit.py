@@ -1,0 +1,85 @@
+"""Fitting a descriptor bundle's whitening (:mod:`whitening`) on its own training scans.
+
+    python -m experiments.whiten --bundle=sphere_jax/weights/lead_mid/bundle
+
+describes ``keypoints`` random keypoints on each of ``scans`` scans spread over the bundle's
+``config.data.root`` (the scans it trained on: never an evaluation scene), at its training
+voxel and radius, and fits one whitening per frame source: ``default`` (the kind's own frames)
+and, for LEAD, ``compass`` (in the frames of a Compass bundle).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from sphere_jax import api, bundle as bundle_files, checks, paths
+from sphere_jax.data import pipeline
+from sphere_jax.features import whitening
+from sphere_jax.registration import fragments
+
+SCANS, KEYPOINTS = 12, 1500     # 18 000 keypoints: 35× LEAD's 512 dimensions
+
+
+def training_clouds(config, scans=SCANS, keypoints=KEYPOINTS, seed=0, progress=True):
+    """``([(points, keypoints)], scan paths)``: ``scans`` scans evenly spread over
+    ``config.data.root``'s, on its voxel grid, ``keypoints`` random ones each."""
+    found = pipeline.scan_paths(config.data.root)
+    picked = [found[i] for i in np.unique(np.linspace(0, len(found) - 1, scans).round()
+                                          .astype(int))]
+    clouds = []
+    for i, path in enumerate(tqdm(picked, desc="training scans", disable=not progress)):
+        points = pipeline.load_scan(path, config.data.voxel)
+        rng = np.random.default_rng([seed, i])
+        clouds.append((points, rng.choice(len(points), min(keypoints, len(points)),
+                                          replace=False)))
+    return clouds, picked
+
+
+def descriptor_bundle(bundle_arg):
+    """``(folder, Bundle)`` of a bundle argument that must describe (checked, named)."""
+    path = api.bundle_path(bundle_arg)
+    model = api.load_bundle(path)
+    if model.spec.describe is None:
+        raise checks.InputError("bundle", "a descriptor bundle (lead, lead_pn, sound)",
+                                f"one of kind {model.kind!r}")
+    return path, model
+
+
+def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, command=None,
+               progress=True):
+    """Fit and save the whitenings of the descriptor bundle ``bundle_dir`` (``compass``: a
+    Compass bundle for LEAD's ``compass`` source; None: the shipped one). Returns
+    ``{source: keypoints used}``."""
+    bundle_dir, model = descriptor_bundle(bundle_dir)
+    frame_paths = {"compass": api.bundle_path(compass or "compass")} \
+        if model.spec.describe_frames else {}
+    frame_bundles = {k: api.load_bundle(p) for k, p in frame_paths.items()}
+    start = time.perf_counter()
+    clouds, picked = training_clouds(model.config, scans, keypoints, progress=progress)
+    radius = float(model.config.data.radius)
+    sources = {"default": None}
+    for name, lrf in frame_bundles.items():
+        sources[name] = [np.where(v[:, None, None], f, np.eye(3, dtype=np.float32))
+                         for f, v in lrf.orient_clouds(clouds, radius, on_invalid="mask")]
+    fitted, statement, used = {}, {}, {}
+    for name, frames in sources.items():
+        out = model.describe_clouds(clouds, radius, frames=frames, on_invalid="mask",
+                                    whiten=None)
+        desc = np.concatenate([d[v] for d, v in out])
+        fitted[name] = whitening.fit(desc)
+        used[name] = len(desc)
+        statement[name] = {
+            "scans": [paths.portable(p) for p in picked], "keypoints": len(desc),
+            "voxel": float(model.config.data.voxel), "radius": radius,
+            "dimensions_kept": int(fitted[name].axes.shape[1]), "eps": whitening.EPS,
+            "frames": ("the kind's own" if name == "default" else
+                       f"{name} bundle {paths.relative(frame_paths[name])} "
+                       f"({bundle_files.fingerprint(frame_paths[name])})"),
+            "command": command or ""}
+    whitening.save(bundle_dir, fitted, statement)
+    if progress:
+        print(f"whitenings {', '.join(used)} fitted on {sum(used.values())} keypoints of "
+              f"{len(picked)} training scans in {time.perf_counter() - start:.0f} s")
+    return used
