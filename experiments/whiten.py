@@ -32,7 +32,7 @@ def main(argv=None):
         checks.positive(args.keypoints, "keypoints", integer=True)
         whitening_fit.descriptor_bundle(args.bundle)
         if args.compass is not None:
-            api.load_bundle(args.compass)
+            api.cached_bundle(args.compass)
     with cli.refusals():
         whitening_fit.fit_bundle(args.bundle, args.compass, args.scans, args.keypoints,
                                  command=cli.command("experiments.whiten"))

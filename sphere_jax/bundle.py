@@ -214,10 +214,9 @@ def read_training_data(path) -> dict:
 def stamp(path):
     """Changes when the bundle is rewritten or its whitening refitted (for caches keyed on the
     folder)."""
-    names = (CONFIG, WHITENING)
-    stats = [os.path.join(os.path.abspath(str(path)), n) for n in names]
-    stats = [os.stat(s).st_mtime_ns if os.path.isfile(s) else None for s in stats]
-    return None if stats[0] is None else tuple(stats)
+    files = [os.path.join(os.path.abspath(str(path)), n) for n in (CONFIG, WHITENING)]
+    times = tuple(os.stat(f).st_mtime_ns if os.path.isfile(f) else None for f in files)
+    return None if times[0] is None else times
 
 
 def fingerprint(path) -> str | None:

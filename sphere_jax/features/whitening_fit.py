@@ -17,7 +17,6 @@ from tqdm.auto import tqdm
 from sphere_jax import api, bundle as bundle_files, checks, paths
 from sphere_jax.data import pipeline
 from sphere_jax.features import whitening
-from sphere_jax.registration import fragments
 
 SCANS, KEYPOINTS = 12, 1500     # 18 000 keypoints: 35× LEAD's 512 dimensions
 
@@ -38,9 +37,10 @@ def training_clouds(config, scans=SCANS, keypoints=KEYPOINTS, seed=0, progress=T
 
 
 def descriptor_bundle(bundle_arg):
-    """``(folder, Bundle)`` of a bundle argument that must describe (checked, named)."""
+    """``(folder, Bundle)`` of a bundle argument that must describe (checked, named); cached,
+    so that checking the argument first does not load the bundle twice."""
     path = api.bundle_path(bundle_arg)
-    model = api.load_bundle(path)
+    model = api.cached_bundle(path)
     if model.spec.describe is None:
         raise checks.InputError("bundle", "a descriptor bundle (lead, lead_pn, sound)",
                                 f"one of kind {model.kind!r}")
@@ -55,7 +55,7 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
     bundle_dir, model = descriptor_bundle(bundle_dir)
     frame_paths = {"compass": api.bundle_path(compass or "compass")} \
         if model.spec.describe_frames else {}
-    frame_bundles = {k: api.load_bundle(p) for k, p in frame_paths.items()}
+    frame_bundles = {k: api.cached_bundle(p) for k, p in frame_paths.items()}
     start = time.perf_counter()
     clouds, picked = training_clouds(model.config, scans, keypoints, progress=progress)
     radius = float(model.config.data.radius)
