@@ -23,6 +23,8 @@ import io as bytes_io
 import json
 import os
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from sphere_jax import bundle, checks, files
@@ -36,11 +38,14 @@ NULL = 1e-9             # variances below NULL · λ_max are the descriptor's nu
 
 @dataclasses.dataclass(frozen=True)
 class Whitening:
-    """``apply(desc) = unit(((desc − mean) · axes / scales) · axesᵀ)``: the whitened
-    descriptor in the original coordinates (same width D), of unit length."""
+    """``apply(desc) = unit(((desc · weights − mean) · axes / scales) · axesᵀ)``: the whitened
+    descriptor in the original coordinates (same width D), of unit length. ``weights`` (None:
+    all 1) scale the coordinates first: :func:`rotation_averaged` works in coordinates where
+    turning an SO(3) map is an orthogonal map."""
     mean: np.ndarray            # [D]
     axes: np.ndarray            # [D, k] principal axes, orthonormal columns
     scales: np.ndarray          # [k] sqrt(variance + EPS · λ_max)
+    weights: np.ndarray | None = None   # [D]
 
     def transform(self, desc_KxD):
         """``[K, D]`` float64: whitened, before unit length (Euclidean distances between
@@ -49,6 +54,8 @@ class Whitening:
         if x.ndim != 2 or x.shape[1] != len(self.mean):
             raise checks.InputError("descriptors", f"[K, {len(self.mean)}] (the width the "
                                     "whitening was fitted on)", checks.shown(x))
+        if self.weights is not None:
+            x = x * self.weights
         return ((x - self.mean) @ self.axes / self.scales) @ self.axes.T
 
     def apply(self, desc_KxD):
@@ -66,10 +73,48 @@ def fit(desc_NxD, eps=EPS) -> Whitening:
         raise checks.InputError("desc_NxD", "finite descriptors [N, D] with N > D",
                                 checks.shown(x))
     mean = x.mean(0)
-    variances, axes = np.linalg.eigh(np.cov((x - mean).T))
+    return _of_moments(mean, np.cov((x - mean).T), eps)
+
+
+def _of_moments(mean_D, cov_DxD, eps=EPS, weights_D=None) -> Whitening:
+    variances, axes = np.linalg.eigh(cov_DxD)
     variances, axes = variances[::-1], axes[:, ::-1]
     keep = variances > NULL * variances[0]
-    return Whitening(mean, axes[:, keep], np.sqrt(variances[keep] + eps * variances[0]))
+    return Whitening(mean_D, axes[:, keep], np.sqrt(variances[keep] + eps * variances[0]),
+                     weights_D)
+
+
+def rotation_averaged(w: Whitening, bandwidth: int, eps=EPS) -> Whitening:
+    """The whitening of the same descriptors turned to uniformly random frames, for SO(3)
+    maps ``[(2B)³]`` (LEAD's) at ``bandwidth`` B: what matching in a frame shared by a whole
+    scan needs (the pair vote's second pass), where no keypoint's map is in a canonical pose.
+
+    The fitted covariance C (of ``w``, its regularised variances ``scales²``) and mean μ are
+    averaged over SO(3), ``E_Q[T_Q (C + μμᵀ) T_Qᵀ] − μ̄μ̄ᵀ``, exactly: the integrand has degree
+    < 2B, which the SOFT quadrature over the B grid's rotations integrates exactly. It works
+    in Haar-weighted coordinates (each grid value times √(Haar weight)), where T_Q is
+    orthogonal, so the averaged covariance commutes with every turn and the whitening is
+    equivariant: turning all maps by one rotation leaves their whitened distances unchanged
+    (``tests/features/test_whitening.py``)."""
+    from sphere_jax.spherical import so3, transforms       # JAX, only for this
+    side = 2 * bandwidth
+    if w.weights is not None or len(w.mean) != side ** 3:
+        raise checks.InputError("w", f"a plain whitening of [{side ** 3}] SO(3) maps at B = "
+                                f"{bandwidth}", f"one of width {len(w.mean)}")
+    haar = np.broadcast_to(so3.haar_weights(bandwidth)[:, None, None], (side,) * 3)
+    root = np.sqrt(haar).ravel()
+    columns = np.concatenate([w.axes * w.scales, w.mean[:, None]], 1).T      # [k + 1, D]
+    maps = jnp.asarray(columns.reshape((-1,) + (side,) * 3), jnp.float32)
+    turn = jax.jit(jax.vmap(transforms.rotate_so3, (None, 0)))
+    rotations = so3.so3_grid_matrices(bandwidth).reshape(-1, 3, 3)
+    turned = np.concatenate([np.asarray(turn(maps, jnp.asarray(r, jnp.float32)))
+                             for r in np.array_split(rotations, 8)], 0)      # [Q, k + 1, ...]
+    turned = turned.reshape(len(rotations), len(columns), -1).astype(np.float64) * root
+    quad = haar.ravel()[:, None, None]                       # Σ = 1 over the grid's rotations
+    second = np.einsum("qkd,qke->de", turned * quad, turned)
+    mean = np.einsum("qd,q->d", turned[:, -1], haar.ravel())
+    cov = second - np.outer(mean, mean)
+    return _of_moments(mean, (cov + cov.T) / 2, eps, root)
 
 
 def save(bundle_dir, whitenings: dict, statement: dict):
@@ -81,7 +126,8 @@ def save(bundle_dir, whitenings: dict, statement: dict):
     kept = load(bundle_dir)
     kept.update(whitenings)
     arrays = {f"{s}.{f.name}": np.asarray(getattr(w, f.name), np.float32)
-              for s, w in kept.items() for f in dataclasses.fields(w)}
+              for s, w in kept.items() for f in dataclasses.fields(w)
+              if getattr(w, f.name) is not None}
     buffer = bytes_io.BytesIO()
     np.savez(buffer, **arrays)
     files.atomic_write(os.path.join(bundle_dir, FILE), buffer.getvalue())
@@ -102,8 +148,8 @@ def load(bundle_dir) -> dict:
         raise checks.BundleError(bundle_dir, f"its {FILE} does not read ({e})") from None
     sources = sorted({k.split(".")[0] for k in arrays})
     try:
-        return {s: Whitening(arrays[f"{s}.mean"], arrays[f"{s}.axes"], arrays[f"{s}.scales"])
-                for s in sources}
+        return {s: Whitening(arrays[f"{s}.mean"], arrays[f"{s}.axes"], arrays[f"{s}.scales"],
+                             arrays.get(f"{s}.weights")) for s in sources}
     except KeyError as e:
         raise checks.BundleError(bundle_dir, f"its {FILE} lacks {e}") from None
 
