@@ -7,7 +7,7 @@ import jax
 import numpy as np
 
 from sphere_jax import api, parallel
-from sphere_jax.features import descriptors, lrfs, registry
+from sphere_jax.features import descriptors, lrfs, registry, whitening
 from sphere_jax.features import methods as method_lib
 from sphere_jax.models import lead as lead_model
 from sphere_jax.registration.vote import HYPOTHESES, TOL_DEG, VotedFrames
@@ -32,10 +32,19 @@ def _shot_vote(radius):
     return first, again
 
 
-def _lead_vote(radius, bundles, chunk):
+def _lead_vote(radius, bundles, chunk, whiten):
     lead = api.cached_bundle(bundles["lead"])
     compass = api.cached_bundle(bundles["compass"])
     turn = jax.jit(lead_model.canonical_descriptors)
+    # The first pass matches in Compass's frames (their whitening); the second in one frame
+    # per scan, where no map is in a canonical pose: the rotation average of the statistics.
+    first_white = lead.whitenings.get("compass") if whiten else None
+    fitted = lead.whitenings.get("default", first_white) if whiten else None
+    shared_white = None if fitted is None else whitening.rotation_averaged(
+        fitted, lead.config.model_kwargs["bandwidths"][-1])
+
+    def white(w, desc_KxD):
+        return desc_KxD if w is None or not len(desc_KxD) else w.apply(desc_KxD)
 
     def turned(maps_KxD, frames_Kx3x3):
         side = round(maps_KxD.shape[1] ** (1 / 3))
@@ -55,26 +64,31 @@ def _lead_vote(radius, bundles, chunk):
                                           on_invalid="mask")
         frames[~oriented] = np.eye(3)
         desc = turned(maps, frames) if k else maps
+        desc[~valid] = np.nan                         # never matched
         frames[~(valid & oriented)] = np.nan          # no proposal from an undescribed keypoint
-        return desc, frames, maps
+        return white(first_white, desc), frames, np.where(valid[:, None], maps, np.nan)
 
     def again(f, maps, rotation_3x3):
         if np.allclose(rotation_3x3, np.eye(3)) or not len(maps):
-            return maps
-        return turned(maps, method_lib.one_frame(rotation_3x3, len(maps)))
+            return white(shared_white, maps)
+        turns = turned(np.nan_to_num(maps), method_lib.one_frame(rotation_3x3, len(maps)))
+        return white(shared_white, np.where(np.isnan(maps[:, :1]), np.nan, turns))
     return first, again
 
 
 def voted_frames(name, radius, bundles=None, chunk=None, tol_deg=TOL_DEG,
-                 hypotheses=HYPOTHESES, box=True) -> VotedFrames:
+                 hypotheses=HYPOTHESES, box=True, whiten=True) -> VotedFrames:
     """``lead@compass+vote`` or ``shot+vote`` (keys ``lead_vote``, ``shot_vote``) with supports of
     ``radius`` metres; ``bundles`` maps lead and compass to bundle paths; ``hypotheses`` modes
-    of each pair's vote are tried, and with ``box`` the box turns of the strongest."""
+    of each pair's vote are tried, and with ``box`` the box turns of the strongest. With
+    ``whiten``, LEAD's maps are whitened as its bundle's statistics say (first pass: its
+    ``compass`` whitening; second: :func:`~sphere_jax.features.whitening.rotation_averaged`);
+    a bundle without a whitening matches raw maps."""
     bundles = bundles or {}
     name = registry.resolve(name, ("voted",), "name").key
     if method_lib.bundles_needed([name], bundles):
         raise ValueError(f"method {name!r} needs bundle(s) {method_lib.BUNDLE_OF[name]} in "
                          f"'bundles'")
     first, again = (_shot_vote(radius) if name == "shot_vote" else
-                    _lead_vote(radius, bundles, chunk))
+                    _lead_vote(radius, bundles, chunk, whiten))
     return VotedFrames(first, again, tol_deg, hypotheses, box)

@@ -143,8 +143,8 @@ def moved_pair():
     return _fixtures.moved_pair(n_keypoints=64)
 
 
-def _vote_and_describe(name, f, g):
-    voted = voted_lib.voted_frames(name, 0.30, BUNDLES)
+def _vote_and_describe(name, f, g, **kw):
+    voted = voted_lib.voted_frames(name, 0.30, BUNDLES, **kw)
     inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], mutual_matches)
     return inputs[(0, 1)], votes[(0, 1)]
 
@@ -174,14 +174,21 @@ def test_lead_vote_recovers_the_pair_rotation_from_compass_frames(moved_pair):
     land within a few degrees, and the second pass then describes corresponding keypoints as
     ``lead_gt`` would (the patch redraw and the network's equivariance error aside)."""
     f, g, t = moved_pair
-    (d_f, d_g), vote = _vote_and_describe("lead_vote", f, g)
+    (d_f, d_g), vote = _vote_and_describe("lead_vote", f, g, whiten=False)
     err = np.degrees(so3.geodesic_distance_np(vote.rotation, t[:3, :3]))
-    rows = np.linalg.norm(d_f, axis=1) > 0
+    rows = np.all(np.isfinite(d_f), axis=1) & np.all(np.isfinite(d_g), axis=1)
     paired, shuffled = _relative(d_g[rows], d_f[rows]), _relative(d_g[rows][::-1], d_f[rows])
     print(f"vote error {err:.2f}°, support {vote.support} of {vote.proposals}; relative "
           f"difference {paired:.3f}, against other keypoints {shuffled:.3f}")
     assert err < 3.0 and vote.support >= 10
     assert paired < 0.2 * shuffled
+    # Whitened (the default), the same vote, and every described keypoint's nearest
+    # neighbour in the other scan is its partner.
+    (w_f, w_g), white_vote = _vote_and_describe("lead_vote", f, g)
+    assert np.allclose(white_vote.rotation, vote.rotation, atol=0.02)
+    assert np.allclose(np.linalg.norm(w_f[rows], axis=1), 1.0, atol=1e-5)
+    nearest = np.linalg.norm(w_f[rows][:, None] - w_g[rows][None], axis=-1).argmin(1)
+    assert (nearest == np.arange(rows.sum())).mean() > 0.9
 
 
 def test_a_pair_without_agreeing_frames_gets_a_wrong_vote_not_an_error(moved_pair):
