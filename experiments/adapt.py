@@ -8,16 +8,20 @@ of minutes or steps, stopping early when the loss on held-back keypoints stops i
 truth is read. The scale is chosen from the scans as ``experiments.register`` chooses it
 (``--voxel``/``--radius`` to set it). The adapted bundle is written to ``WORKDIR/bundle``, its
 model card naming the scans; ``register --method=lead@compass --bundle=WORKDIR/bundle`` uses
-it, and re-running the same command resumes. What adapting each kind measured:
-docs/training.md.
+it, and re-running the same command resumes. A descriptor bundle's whitening is fitted
+again on your scans (``--no-whiten``: none; ``--compass``: the Compass bundle whose frames
+LEAD's ``compass`` whitening is fitted in, e.g. one adapted before). What adapting each kind
+measured: docs/training.md.
 """
 from __future__ import annotations
 
+import argparse
 
 from experiments import cli
 from sphere_jax import align, api, checks, training, workdirs
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import io
+from sphere_jax.features import whitening_fit
 from sphere_jax.training import adaptation
 
 SCALE_SCANS = 8          # scans read to choose the scale (the first ones, in file order)
@@ -54,6 +58,11 @@ def main(argv=None):
     parser.add_argument("--learning_rate", type=float, default=None,
                         help="the rate after a short warm-up (default: a tenth of the "
                              "bundle's training rate)")
+    parser.add_argument("--whiten", action=argparse.BooleanOptionalAction, default=True,
+                        help="descriptor bundles: fit the whitening on the scans (default)")
+    parser.add_argument("--compass", default=None,
+                        help="LEAD only: the Compass bundle for the 'compass' whitening "
+                             "(default: the shipped one)")
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
     minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
@@ -63,6 +72,8 @@ def main(argv=None):
         checks.non_negative(args.patience, "patience", integer=True)
         bundle = api.load_bundle(args.bundle)
         data = auto_data(bundle, args.data, args.voxel, args.radius)
+        if args.compass is not None:
+            whitening_fit.frame_bundle(args.compass)
         workdirs.prepare(args.workdir, "--workdir")
     with cli.refusals():
         print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "
@@ -71,6 +82,9 @@ def main(argv=None):
         path, last = training.adapt(bundle, args.data, args.steps, args.workdir,
                                     args.learning_rate, data=data, minutes=minutes,
                                     patience=args.patience)
+        if args.whiten:
+            whitening_fit.fit_if_descriptor(path, args.compass,
+                                            command=cli.command("experiments.adapt"))
     print(f"adapted bundle in {path}: " + ", ".join(
         f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
 

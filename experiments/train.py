@@ -1,5 +1,9 @@
 """Train a model: ``python -m experiments.train --config=sound[:small|:tiny] [--workdir=DIR]``.
 
+A descriptor bundle (LEAD, LEAD-PN, SOUND) gets its whitening when the run finishes: fitted on
+its own training scans as ``experiments.whiten`` fits it (LEAD's Compass source in the shipped
+Compass's frames), so the one command makes the whole bundle (``--nowhiten``: leave it out).
+
 ``--config`` takes an experiment name (``sound``), ``name:size`` or a config file path
 (``configs/sound.py:small``); fields are overridden with ``--config.train.steps=200`` and the
 like. Running the same command again resumes from the newest checkpoint in the workdir, with
@@ -33,6 +37,8 @@ flags.DEFINE_bool("distributed", False, "join a multi-host run found by JAX (Slu
 flags.DEFINE_string("coordinator", None, "multi-host run: HOST:PORT of process 0")
 flags.DEFINE_integer("num_processes", None, "multi-host run: number of processes")
 flags.DEFINE_integer("process_id", None, "multi-host run: this process's index")
+flags.DEFINE_bool("whiten", True, "descriptor bundles: fit the whitening on the training "
+                  "scans when the run finishes (experiments.whiten)")
 flags.DEFINE_float("peer_timeout_s", 60.0, "multi-host run: stop when another process has been "
                    "silent this long (rerun the same command to resume)")
 
@@ -53,12 +59,16 @@ def main(_):
     if config is None:
         raise app.UsageError("--config is required, e.g. --config=sound:small")
     _set_host_devices(f.host_devices)
-    from sphere_jax import parallel, training       # after XLA_FLAGS: nothing of JAX ran yet
+    import jax                                      # after XLA_FLAGS: nothing of JAX ran yet
+    from sphere_jax import parallel, training
+    from sphere_jax.features import whitening_fit
     if f.distributed or f.coordinator or f.num_processes is not None:
         parallel.initialize(f.coordinator, f.num_processes, f.process_id, f.peer_timeout_s)
     workdir = f.workdir or os.path.join("runs", f"{config.model}_{config.size}")
     command = cli.command("experiments.train")
     _, last = training.train_and_evaluate(config, workdir, command=command)
+    if f.whiten and jax.process_index() == 0:
+        whitening_fit.fit_if_descriptor(os.path.join(workdir, "bundle"), command=command)
     print(f"finished in {workdir}: " + ", ".join(f"{k}={v:.4g}" for k, v in last.items()
                                                   if isinstance(v, float)))
 

@@ -13,7 +13,7 @@ default; what it buys on the redkitchen pairs: docs/results.md.
 from __future__ import annotations
 
 from experiments import cli
-from sphere_jax import api, checks
+from sphere_jax import checks
 from sphere_jax.features import whitening_fit
 
 
@@ -32,7 +32,7 @@ def main(argv=None):
         checks.positive(args.keypoints, "keypoints", integer=True)
         whitening_fit.descriptor_bundle(args.bundle)
         if args.compass is not None:
-            api.cached_bundle(args.compass)
+            whitening_fit.frame_bundle(args.compass)
     with cli.refusals():
         whitening_fit.fit_bundle(args.bundle, args.compass, args.scans, args.keypoints,
                                  command=cli.command("experiments.whiten"))

@@ -105,6 +105,10 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     (["experiments.whiten", "--bundle=lead", "--keypoints=0"],
      "whiten: error: keypoints must be a positive integer; got 0"),
     (["experiments.whiten", "--bundle=/nonexistent"], "whiten: error: bundle /nonexistent"),
+    (["experiments.whiten", "--bundle=lead", "--compass=lead_pn"],
+     "whiten: error: compass must be a bundle that orients (compass)"),
+    (["experiments.adapt", "--bundle=lead", "--data=embedded:1", "--compass=lead_pn"],
+     "adapt: error: compass must be a bundle that orients (compass)"),
 ])
 def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
     """Each main's arguments (bundles, scans, files) are read before any work; a bad one is
@@ -139,3 +143,20 @@ def test_unusable_or_busy_workdirs_are_one_line_and_status_2(main, tmp_path):
         holder.wait()
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert f"is in use by process {holder.pid}" in out.stderr
+
+
+def test_train_writes_a_whitened_bundle_with_its_card(tmp_path):
+    """One command makes the whole descriptor bundle: the whitening is fitted on the training
+    scans when the run finishes, and the card says so (``--nowhiten``: none)."""
+    import json
+    out = run("experiments.train", "--config=sound:tiny", "--config.train.steps=2",
+              f"--workdir={tmp_path / 'w'}")
+    assert out.returncode == 0, out.stderr[-2000:]
+    statement = json.loads((tmp_path / "w" / "bundle" / "whitening.json").read_text())
+    assert statement["default"]["keypoints"] > 10_000
+    assert statement["default"]["command"].startswith("python -m experiments.train ")
+    assert "descriptor whitening `default`" in (tmp_path / "w" / "bundle" /
+                                                "MODEL_CARD.md").read_text()
+    out = run("experiments.train", "--config=sound:tiny", "--config.train.steps=2",
+              "--nowhiten", f"--workdir={tmp_path / 'v'}")
+    assert out.returncode == 0 and not (tmp_path / "v" / "bundle" / "whitening.npz").exists()

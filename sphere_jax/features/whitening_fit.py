@@ -14,7 +14,7 @@ import time
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import api, bundle as bundle_files, checks, paths
+from sphere_jax import api, bundle as bundle_files, checks, model_card, paths
 from sphere_jax.data import pipeline
 from sphere_jax.features import whitening
 
@@ -47,15 +47,34 @@ def descriptor_bundle(bundle_arg):
     return path, model
 
 
+def frame_bundle(bundle_arg):
+    """The Compass-like bundle of a ``compass`` argument: one that orients (checked, named)."""
+    model = api.cached_bundle(api.bundle_path(bundle_arg))
+    if model.spec.orient is None:
+        raise checks.InputError("compass", "a bundle that orients (compass)",
+                                f"one of kind {model.kind!r}")
+    return model
+
+
+def fit_if_descriptor(bundle_dir, compass=None, command=None, progress=True):
+    """:func:`fit_bundle` with the default scans and keypoints when ``bundle_dir`` describes
+    (LEAD, LEAD-PN, SOUND); None for other kinds. What ``experiments.train`` and
+    ``experiments.adapt`` run on the bundle they write: new weights make old statistics
+    stale."""
+    if api.cached_bundle(api.bundle_path(bundle_dir)).spec.describe is None:
+        return None
+    return fit_bundle(bundle_dir, compass, command=command, progress=progress)
+
+
 def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, command=None,
                progress=True):
     """Fit and save the whitenings of the descriptor bundle ``bundle_dir`` (``compass``: a
-    Compass bundle for LEAD's ``compass`` source; None: the shipped one). Returns
-    ``{source: keypoints used}``."""
+    Compass bundle for LEAD's ``compass`` source; None: the shipped one) and render its model
+    card again. Returns ``{source: keypoints used}``."""
     bundle_dir, model = descriptor_bundle(bundle_dir)
     frame_paths = {"compass": api.bundle_path(compass or "compass")} \
         if model.spec.describe_frames else {}
-    frame_bundles = {k: api.cached_bundle(p) for k, p in frame_paths.items()}
+    frame_bundles = {k: frame_bundle(p) for k, p in frame_paths.items()}
     start = time.perf_counter()
     clouds, picked = training_clouds(model.config, scans, keypoints, progress=progress)
     radius = float(model.config.data.radius)
@@ -79,6 +98,7 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
                        f"({bundle_files.fingerprint(frame_paths[name])})"),
             "command": command or ""}
     whitening.save(bundle_dir, fitted, statement)
+    model_card.render(bundle_dir)                    # the card states what was fitted
     if progress:
         print(f"whitenings {', '.join(used)} fitted on {sum(used.values())} keypoints of "
               f"{len(picked)} training scans in {time.perf_counter() - start:.0f} s")
