@@ -58,7 +58,8 @@ def compute():
     out["lead_pn_describe_whitened"] = lead_pn.describe(pts, kp, **kw)
     sound = sphere_jax.load_bundle(bundle("sound"))
     out["sound_orient"] = sound.orient(pts, kp, **kw)
-    out["sound_describe"] = sound.describe(pts, kp, **kw)
+    out["sound_describe"] = sound.describe(pts, kp, whiten=None, **kw)
+    out["sound_describe_whitened"] = sound.describe(pts, kp, **kw)
     shapes = sphere_jax.load_bundle(bundle("compass_shapes"))
     unit = pts[:shapes.config.data.n_points * 2].reshape(2, -1, 3)
     unit = (unit - unit.mean(1, keepdims=True)) / 1.5
