@@ -225,8 +225,11 @@ def frame_kinds(method: registry.Method) -> tuple[str, ...]:
 def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir):
     """``bundles`` with the frame networks ``method`` uses (:func:`frame_kinds`) adapted to
     the two scans for ``minutes`` in all (shared equally), each with its own loss and no
-    label (:mod:`sphere_jax.training`), at the registration's voxel and radius."""
+    label (:mod:`sphere_jax.training`), at the registration's voxel and radius. A descriptor
+    among them (SOUND) gets its whitening fitted again on the two scans: the shipped one's
+    statistics are of other weights."""
     from sphere_jax import api, training
+    from sphere_jax.features import whitening_fit
     from sphere_jax.training import adaptation
     kinds = frame_kinds(registry.resolve(method))
     os.makedirs(workdir, exist_ok=True)
@@ -240,6 +243,7 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
         out[kind], _ = training.adapt(trained, ",".join(scans), None,
                                       os.path.join(workdir, kind), minutes=minutes / len(kinds),
                                       data=adaptation.data_at_scale(trained, voxel, radius))
+        whitening_fit.fit_if_descriptor(out[kind], progress=False)
         notes.append(adaptation.outcome(out[kind]))
     return out, "; ".join(notes)
 

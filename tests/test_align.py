@@ -157,3 +157,20 @@ def test_only_methods_with_learned_frames_adapt():
             align.register(p, p, method=method, adapt=1)
     assert align.frame_kinds(registry.resolve("lead@compass")) == ("compass",)
     assert align.frame_kinds(registry.resolve("sound")) == ("sound",)
+
+
+@pytest.mark.slow
+def test_an_adapted_sound_gets_its_whitening_fitted_on_the_two_scans(pair, tmp_path):
+    """SOUND is a descriptor: adapted, its shipped whitening's statistics are of other
+    weights, so the adapted bundle carries one fitted on the two scans themselves."""
+    from sphere_jax import api, paths
+    from sphere_jax.features import whitening
+    (src, dst), _ = pair
+    out, note = align.adapted_bundles("sound", {"sound": paths.shipped_bundle("sound")},
+                                      src, dst, 0.03, 0.45, 0.05, str(tmp_path))
+    statement = whitening.read_statement(out["sound"])["default"]
+    assert len(statement["scans"]) == 2 and statement["keypoints"] > 512, statement
+    assert "sound" in note
+    fitted = api.load_bundle(out["sound"]).whitenings["default"]
+    shipped = api.load_bundle("sound").whitenings["default"]
+    assert not np.allclose(fitted.mean, shipped.mean, atol=1e-3)
