@@ -8,14 +8,12 @@ of minutes or steps, stopping early when the loss on held-back keypoints stops i
 truth is read. The scale is chosen from the scans as ``experiments.register`` chooses it
 (``--voxel``/``--radius`` to set it). The adapted bundle is written to ``WORKDIR/bundle``, its
 model card naming the scans; ``register --method=lead@compass --bundle=WORKDIR/bundle`` uses
-it, and re-running the same command resumes. A descriptor bundle's whitening is fitted
-again on your scans (``--no-whiten``: none; ``--compass``: the Compass bundle whose frames
-LEAD's ``compass`` whitening is fitted in, e.g. one adapted before). What adapting each kind
-measured: docs/training.md.
+it, and re-running the same command resumes. A descriptor bundle keeps its whitening
+(``--refit_whitening``: fit one on your scans instead, LEAD's ``compass`` one in the frames of
+``--compass``, e.g. a Compass adapted before). What adapting each kind measured:
+docs/training.md.
 """
 from __future__ import annotations
-
-import argparse
 
 from experiments import cli
 from sphere_jax import align, api, checks, training, workdirs
@@ -58,11 +56,12 @@ def main(argv=None):
     parser.add_argument("--learning_rate", type=float, default=None,
                         help="the rate after a short warm-up (default: a tenth of the "
                              "bundle's training rate)")
-    parser.add_argument("--whiten", action=argparse.BooleanOptionalAction, default=True,
-                        help="descriptor bundles: fit the whitening on the scans (default)")
+    parser.add_argument("--refit_whitening", action="store_true",
+                        help="descriptor bundles: fit the whitening on these scans instead of "
+                             "keeping the bundle's (on the bunny's scans it matched worse)")
     parser.add_argument("--compass", default=None,
-                        help="LEAD only: the Compass bundle for the 'compass' whitening "
-                             "(default: the shipped one)")
+                        help="with --refit_whitening, LEAD: the Compass bundle for the "
+                             "'compass' whitening (default: the shipped one)")
     parser.add_argument("--workdir", required=True)
     args = parser.parse_args(argv)
     minutes = 10.0 if args.minutes is None and args.steps is None else args.minutes
@@ -82,9 +81,11 @@ def main(argv=None):
         path, last = training.adapt(bundle, args.data, args.steps, args.workdir,
                                     args.learning_rate, data=data, minutes=minutes,
                                     patience=args.patience)
-        if args.whiten:
+        if args.refit_whitening:
             whitening_fit.fit_if_descriptor(path, args.compass,
                                             command=cli.command("experiments.adapt"))
+        else:
+            whitening_fit.keep_from(args.bundle, path)
     print(f"adapted bundle in {path}: " + ", ".join(
         f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
 

@@ -226,8 +226,8 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     """``bundles`` with the frame networks ``method`` uses (:func:`frame_kinds`) adapted to
     the two scans for ``minutes`` in all (shared equally), each with its own loss and no
     label (:mod:`sphere_jax.training`), at the registration's voxel and radius. A descriptor
-    among them (SOUND) gets its whitening fitted again on the two scans: the shipped one's
-    statistics are of other weights."""
+    among them (SOUND) keeps its bundle's whitening (:func:`~sphere_jax.features.whitening_fit.
+    keep_from`: two scans are too few to fit one)."""
     from sphere_jax import api, training
     from sphere_jax.features import whitening_fit
     from sphere_jax.training import adaptation
@@ -243,7 +243,7 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
         out[kind], _ = training.adapt(trained, ",".join(scans), None,
                                       os.path.join(workdir, kind), minutes=minutes / len(kinds),
                                       data=adaptation.data_at_scale(trained, voxel, radius))
-        whitening_fit.fit_if_descriptor(out[kind], progress=False)
+        whitening_fit.keep_from(bundles[kind], out[kind])
         notes.append(adaptation.outcome(out[kind]))
     return out, "; ".join(notes)
 

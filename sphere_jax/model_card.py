@@ -161,7 +161,9 @@ def render(bundle_dir):
     for source, fit in whitening.read_statement(bundle_dir).items():
         out += [f"- descriptor whitening `{source}` ({fit['frames']} frames): "
                 f"{fit['keypoints']} keypoints of {len(fit['scans'])} training scans, "
-                f"{fit['dimensions_kept']} directions kept; `{fit['command']}`"]
+                f"{fit['dimensions_kept']} directions kept; `{fit['command']}`"
+                + (f"; kept from `{fit['kept_from']}`, fitted for its weights"
+                   if fit.get("kept_from") else "")]
     steps, val = validation_curve(lines)
     if steps:
         out += ["", "## Validation curve", "", f"![validation curve]({CURVE})", ""]

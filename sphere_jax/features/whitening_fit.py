@@ -58,12 +58,31 @@ def frame_bundle(bundle_arg):
 
 def fit_if_descriptor(bundle_dir, compass=None, command=None, progress=True):
     """:func:`fit_bundle` with the default scans and keypoints when ``bundle_dir`` describes
-    (LEAD, LEAD-PN, SOUND); None for other kinds. What ``experiments.train`` and
-    ``experiments.adapt`` run on the bundle they write: new weights make old statistics
-    stale."""
+    (LEAD, LEAD-PN, SOUND); None for other kinds. What ``experiments.train`` runs on the
+    bundle it writes."""
     if api.cached_bundle(api.bundle_path(bundle_dir)).spec.describe is None:
         return None
     return fit_bundle(bundle_dir, compass, command=command, progress=progress)
+
+
+def keep_from(source_dir, bundle_dir):
+    """Copy the whitenings of bundle ``source_dir`` into ``bundle_dir`` (its adapted copy),
+    the statement naming where they came from; returns the sources copied.
+
+    Why an adaptation keeps them rather than fitting new ones on the user's scans: on the
+    bunny's ten scans, statistics fitted there gave LEAD-PN (whose adaptation kept its
+    weights) an inlier ratio of 0.235 against 0.281 with its training rooms' and the adapted
+    LEAD (Compass) 0.080 against 0.092 (registration recall 0.50 against 0.55) — a few scans
+    of one object vary along fewer directions than the rooms, and whitening blows up the
+    rest (docs/training.md)."""
+    source_dir = api.bundle_path(source_dir)
+    kept = whitening.load(source_dir)
+    if kept:
+        statement = {name: dict(fit, kept_from=paths.relative(source_dir))
+                     for name, fit in whitening.read_statement(source_dir).items()}
+        whitening.save(bundle_dir, kept, statement)
+        model_card.render(bundle_dir)
+    return sorted(kept)
 
 
 def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, command=None,
