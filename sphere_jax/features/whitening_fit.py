@@ -106,6 +106,11 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
         out = model.describe_clouds(clouds, radius, frames=frames, on_invalid="mask",
                                     whiten=None)
         desc = np.concatenate([d[v] for d, v in out])
+        if len(desc) <= desc.shape[1]:
+            raise checks.InputError(
+                "scans", f"enough to describe more keypoints than the descriptor's "
+                f"{desc.shape[1]} values (more scans or --keypoints)",
+                f"{len(desc)} described keypoints on {len(picked)} scan(s)")
         fitted[name] = whitening.fit(desc)
         used[name] = len(desc)
         statement[name] = {

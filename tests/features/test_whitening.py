@@ -146,3 +146,17 @@ def test_a_fitted_whitening_is_what_describe_applies_and_the_card_states(tmp_pat
     card = open(model_card.render(path)).read()
     assert f"descriptor whitening `default` (the kind's own frames): {used['default']} " \
            "keypoints of 3 training scans" in card and "`whiten it`" in card
+
+
+@pytest.mark.slow
+def test_too_few_keypoints_to_fit_are_refused_and_the_bundle_is_left_alone(tmp_path):
+    import shutil
+    from sphere_jax import paths
+    copy = tmp_path / "bundle"
+    shutil.copytree(paths.shipped_bundle("lead_pn"), copy)
+    before = (copy / whitening.FILE).read_bytes()
+    with pytest.raises(sphere_jax.SphereJaxError, match="scans must be enough to describe "
+                                                         "more keypoints than the descriptor's "
+                                                         r"512 values.*got 100 described"):
+        whitening_fit.fit_bundle(copy, scans=1, keypoints=100, progress=False)
+    assert (copy / whitening.FILE).read_bytes() == before
