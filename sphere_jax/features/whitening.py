@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from sphere_jax import bundle, checks, files
+from sphere_jax.spherical import so3, transforms
 
 FILE = bundle.WHITENING
 STATEMENT = "whitening.json"
@@ -96,7 +97,6 @@ def rotation_averaged(w: Whitening, bandwidth: int, eps=EPS) -> Whitening:
     orthogonal, so the averaged covariance commutes with every turn and the whitening is
     equivariant: turning all maps by one rotation leaves their whitened distances unchanged
     (``tests/features/test_whitening.py``)."""
-    from sphere_jax.spherical import so3, transforms       # JAX, only for this
     side = 2 * bandwidth
     if w.weights is not None or len(w.mean) != side ** 3:
         raise checks.InputError("w", f"a plain whitening of [{side ** 3}] SO(3) maps at B = "
