@@ -85,6 +85,10 @@ def _of_moments(mean_D, cov_DxD, eps=EPS, weights_D=None) -> Whitening:
                      weights_D)
 
 
+# maps [K, 2B, 2B, 2B] and rotations [Q, 3, 3] -> every map turned by every rotation
+_turn_each = jax.jit(jax.vmap(transforms.rotate_so3, (None, 0)))
+
+
 def rotation_averaged(w: Whitening, bandwidth: int, eps=EPS) -> Whitening:
     """The whitening of the same descriptors turned to uniformly random frames, for SO(3)
     maps ``[(2B)³]`` (LEAD's) at ``bandwidth`` B: what matching in a frame shared by a whole
@@ -105,14 +109,13 @@ def rotation_averaged(w: Whitening, bandwidth: int, eps=EPS) -> Whitening:
     root = np.sqrt(haar).ravel()
     columns = np.concatenate([w.axes * w.scales, w.mean[:, None]], 1).T      # [k + 1, D]
     maps = jnp.asarray(columns.reshape((-1,) + (side,) * 3), jnp.float32)
-    turn = jax.jit(jax.vmap(transforms.rotate_so3, (None, 0)))
-    rotations = so3.so3_grid_matrices(bandwidth).reshape(-1, 3, 3)
-    turned = np.concatenate([np.asarray(turn(maps, jnp.asarray(r, jnp.float32)))
-                             for r in np.array_split(rotations, 8)], 0)      # [Q, k + 1, ...]
-    turned = turned.reshape(len(rotations), len(columns), -1).astype(np.float64) * root
-    quad = haar.ravel()[:, None, None]                       # Σ = 1 over the grid's rotations
-    second = np.einsum("qkd,qke->de", turned * quad, turned)
-    mean = np.einsum("qd,q->d", turned[:, -1], haar.ravel())
+    rotations = jnp.asarray(so3.so3_grid_matrices(bandwidth).reshape(-1, 3, 3), jnp.float32)
+    turned = np.asarray(_turn_each(maps, rotations), np.float64)       # [Q, k + 1, 2B, 2B, 2B]
+    turned = turned.reshape(len(rotations), len(columns), -1) * root
+    quad = haar.ravel()                                      # Σ = 1 over the grid's rotations
+    rows = (turned * np.sqrt(quad)[:, None, None]).reshape(-1, len(root))
+    second = rows.T @ rows                                   # one GEMM: Σ_q quad_q Σ_k v vᵀ
+    mean = quad @ turned[:, -1]
     cov = second - np.outer(mean, mean)
     return _of_moments(mean, (cov + cov.T) / 2, eps, root)
 
