@@ -1,5 +1,6 @@
 """The command lines: a bad flag, config, field or value is one line on stderr, exit status 2,
 before any work (no traceback, no workdir written)."""
+import json
 import os
 import subprocess
 import sys
@@ -147,8 +148,7 @@ def test_unusable_or_busy_workdirs_are_one_line_and_status_2(main, tmp_path):
 
 def test_train_writes_a_whitened_bundle_with_its_card(tmp_path):
     """One command makes the whole descriptor bundle: the whitening is fitted on the training
-    scans when the run finishes, and the card says so (``--nowhiten``: none)."""
-    import json
+    scans when the run finishes, and the card says so."""
     out = run("experiments.train", "--config=sound:tiny", "--config.train.steps=2",
               f"--workdir={tmp_path / 'w'}")
     assert out.returncode == 0, out.stderr[-2000:]
@@ -157,6 +157,3 @@ def test_train_writes_a_whitened_bundle_with_its_card(tmp_path):
     assert statement["default"]["command"].startswith("python -m experiments.train ")
     assert "descriptor whitening `default`" in (tmp_path / "w" / "bundle" /
                                                 "MODEL_CARD.md").read_text()
-    out = run("experiments.train", "--config=sound:tiny", "--config.train.steps=2",
-              "--nowhiten", f"--workdir={tmp_path / 'v'}")
-    assert out.returncode == 0 and not (tmp_path / "v" / "bundle" / "whitening.npz").exists()
