@@ -14,7 +14,7 @@ import os
 import time
 import warnings
 
-from sphere_jax import bundle, checks, workdirs
+from sphere_jax import bundle, checks, paths, workdirs
 from sphere_jax.data.readers import io
 from sphere_jax.eval import resume
 from sphere_jax.features import methods, registry
@@ -73,7 +73,7 @@ def run(config, workdir, progress=True, command=None):
 def bundles_used(config):
     """Kind -> ``{'path', 'steps_done', 'fingerprint'}`` of the bundles an evaluation config
     names (the classification's whole-shape Compass as ``compass_shapes``)."""
-    from sphere_jax import api, paths
+    from sphere_jax import api
     out = {}
     if "bundles" in config:
         chosen = bundle_paths(config)
@@ -111,7 +111,14 @@ def check_bundles(config, names):
         return
     from sphere_jax import api
     chosen = bundle_paths(config)
-    for kind in sorted(_kinds(names)):
+    needed = _kinds(names)
+    for kind, path in sorted(chosen.items()):
+        # A bundle set away from the shipped one for a kind no chosen method uses is a
+        # mistake worth a line (e.g. --config.bundles.lead=... with methods=shot,usc).
+        if path and kind not in needed and paths.shipped_bundle(kind) != path:
+            warnings.warn(f"config.bundles.{kind}={path!r} is not used: none of the methods "
+                          f"{', '.join(names)} needs a {kind} bundle", stacklevel=2)
+    for kind in sorted(needed):
         path = chosen.get(kind)
         if not path:
             continue

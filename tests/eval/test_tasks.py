@@ -1,5 +1,9 @@
 """The run record of an evaluation names the bundles its methods used, which the published
 tables are stamped with."""
+import warnings
+
+import pytest
+
 from configs import eval_classification, eval_registration
 from sphere_jax import paths
 from sphere_jax.eval import tasks
@@ -16,6 +20,20 @@ def test_run_record_names_the_bundles_the_methods_use():
     assert sorted(tasks.bundles_used(c)) == ["compass_shapes"]
     c.methods = "pointnet"
     assert tasks.bundles_used(c) == {}
+
+
+def test_a_bundle_set_for_a_kind_no_method_uses_is_named_in_a_warning():
+    c = eval_registration.get_config("quick")
+    c.methods = "shot,usc"
+    c.bundles.lead = paths.shipped_bundle("lead_pn")         # a slip: lead_pn meant
+    with pytest.warns(UserWarning, match=r"config.bundles.lead=.* is not used: none of the "
+                                         r"methods shot, usc needs a lead bundle"):
+        tasks.check_bundles(c, ["shot", "usc"])
+    c.methods = "shot,lead_pn"
+    c.bundles.lead = paths.shipped_bundle("lead")            # the defaults: no word
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tasks.check_bundles(c, ["shot", "lead_pn"])
 
 
 def test_a_classification_that_finds_its_classifiers_counts_as_resumed(tmp_path):
