@@ -55,7 +55,7 @@ def one_frame(rotation_3x3, k):
     return np.broadcast_to(np.asarray(rotation_3x3, np.float32), (k, 3, 3))
 
 
-def _masked(values_valid, fill):
+def masked(values_valid, fill):
     """Results of ``on_invalid='mask'`` with ``fill`` where a keypoint's support was too small
     to describe (stray sensor points): NaN descriptors, which never match
     (:func:`~sphere_jax.registration.matching.mutual_matches`), and identity frames, which a
@@ -89,14 +89,14 @@ def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None)
 
         def describe_all(fs):
             clouds = [(f.points, f.keypoints) for f in fs]
-            frames = [_masked(o, np.eye(3)) for o in compass.orient_clouds(
+            frames = [masked(o, np.eye(3)) for o in compass.orient_clouds(
                 clouds, radius=radius, chunk=chunk, on_invalid="mask")]
-            return [_masked(d, np.nan) for d in lead.describe_clouds(
+            return [masked(d, np.nan) for d in lead.describe_clouds(
                 clouds, radius=radius, chunk=chunk, frames=frames, on_invalid="mask",
                 whiten="compass" if "compass" in lead.whitenings else None)]
         return describe_all
     model = _bundle(bundles[name])
-    return lambda fs: [_masked(d, np.nan) for d in model.describe_clouds(
+    return lambda fs: [masked(d, np.nan) for d in model.describe_clouds(
         [(f.points, f.keypoints) for f in fs], radius=radius, chunk=chunk, on_invalid="mask")]
 
 
@@ -141,7 +141,7 @@ def ground_truth_frames(name, radius, bundles=None, chunk=None) -> GroundTruthFr
         lead = _bundle(bundles["lead"])
 
         def describe(f, rot_3x3):
-            return _masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
+            return masked(lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
                                          frames=one_frame(rot_3x3, len(f.keypoints)),
                                          on_invalid="mask"), np.nan)
 
@@ -169,5 +169,5 @@ def lrf(name, radius, bundles=None, chunk=None):
     if bundles_needed([name], bundles):
         raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
     model = _bundle(bundles[name])
-    return lambda f, idx: _masked(model.orient(f.points, idx, radius=radius, chunk=chunk,
+    return lambda f, idx: masked(model.orient(f.points, idx, radius=radius, chunk=chunk,
                                                on_invalid="mask"), np.eye(3))

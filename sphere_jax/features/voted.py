@@ -56,23 +56,23 @@ def _lead_vote(radius, bundles, chunk, whiten):
         k = len(f.keypoints)
         # LEAD's SO(3) maps in the scan's own axes, computed once: every frame after this is
         # a spectral turn of them, not another pass of the network.
+        # An undescribed keypoint's map is a NaN row: every turn keeps it one (each map is
+        # turned on its own), and it never matches.
         maps, valid = lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
                                     frames=method_lib.one_frame(np.eye(3), k),
                                     on_invalid="mask")
-        maps[~valid] = 0
+        maps = method_lib.masked((maps, valid), np.nan)
         frames, oriented = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
                                           on_invalid="mask")
         frames[~oriented] = np.eye(3)
         desc = turned(maps, frames) if k else maps
-        desc[~valid] = np.nan                         # never matched
         frames[~(valid & oriented)] = np.nan          # no proposal from an undescribed keypoint
-        return white(first_white, desc), frames, np.where(valid[:, None], maps, np.nan)
+        return white(first_white, desc), frames, maps
 
     def again(f, maps, rotation_3x3):
-        if np.allclose(rotation_3x3, np.eye(3)) or not len(maps):
-            return white(shared_white, maps)
-        turns = turned(np.nan_to_num(maps), method_lib.one_frame(rotation_3x3, len(maps)))
-        return white(shared_white, np.where(np.isnan(maps[:, :1]), np.nan, turns))
+        if len(maps) and not np.allclose(rotation_3x3, np.eye(3)):
+            maps = turned(maps, method_lib.one_frame(rotation_3x3, len(maps)))
+        return white(shared_white, maps)
     return first, again
 
 

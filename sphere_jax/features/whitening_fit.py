@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax import api, bundle as bundle_files, checks, model_card, paths
 from sphere_jax.data import pipeline
-from sphere_jax.features import whitening
+from sphere_jax.features import methods, whitening
 
 SCANS, KEYPOINTS = 12, 1500     # 18 000 keypoints: 35× LEAD's 512 dimensions
 
@@ -99,8 +99,8 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
     radius = float(model.config.data.radius)
     sources = {"default": None}
     for name, lrf in frame_bundles.items():
-        sources[name] = [np.where(v[:, None, None], f, np.eye(3, dtype=np.float32))
-                         for f, v in lrf.orient_clouds(clouds, radius, on_invalid="mask")]
+        sources[name] = [methods.masked(o, np.eye(3))
+                         for o in lrf.orient_clouds(clouds, radius, on_invalid="mask")]
     fitted, statement, used = {}, {}, {}
     for name, frames in sources.items():
         out = model.describe_clouds(clouds, radius, frames=frames, on_invalid="mask",
