@@ -1,4 +1,5 @@
-"""What the absl mains share: config names, and bad input as one line on stderr.
+"""What the mains share: config names, bad input as one line on stderr, and a persistent
+compilation cache (:mod:`sphere_jax.compile_cache`: a second run does not compile again).
 
 A bad flag, an unknown config, an unknown config field or a value the run cannot use is one
 line (``train: error: ...``) and exit status 2, before any work starts; another refusal of
@@ -18,7 +19,7 @@ import sys
 from absl import app, flags
 
 from configs import resolve_config_arg
-from sphere_jax import checks
+from sphere_jax import checks, compile_cache
 
 USAGE = 2
 
@@ -41,8 +42,10 @@ def command(module):
 
 
 def run(main):
-    """``app.run(main)`` with config names resolved and errors as one line."""
+    """``app.run(main)`` with config names resolved, errors as one line and compiled programs
+    kept on disk (:mod:`sphere_jax.compile_cache`)."""
     _ARGV[:] = sys.argv
+    compile_cache.enable()
     try:
         sys.argv = resolve_config_arg(sys.argv)
         specs = [a.split("=", 1)[1] for a in sys.argv if a.startswith("--config=")]
@@ -87,6 +90,12 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message):
         fail(message)
+
+    def parse_known_args(self, args=None, namespace=None):
+        parsed = super().parse_known_args(args, namespace)
+        # Every argparse main parses before it computes: keep its compiled programs on disk.
+        compile_cache.enable()
+        return parsed
 
 
 def _guarded(main):

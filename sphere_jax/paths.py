@@ -5,11 +5,16 @@
 * the **embedded synthetic data** cache: ``$SPHERE_JAX_DATA``, else ``~/.cache/sphere_jax``
   (:func:`cache_root`; what goes in it is :mod:`sphere_jax.data.generators.synthetic`'s);
 * the **shipped bundles**: package data in ``sphere_jax/weights/`` (``$SPHERE_JAX_WEIGHTS``
-  replaces it; :func:`shipped_bundle`).
+  replaces it; :func:`shipped_bundle`);
+* the **compiled programs** the commands keep (:mod:`sphere_jax.compile_cache`):
+  ``$SPHERE_JAX_COMPILE_CACHE``, else ``~/.cache/sphere_jax/xla/<host>``
+  (:func:`compile_cache_dir`).
 """
 from __future__ import annotations
 
+import hashlib
 import os
+import platform
 
 from sphere_jax import checks
 
@@ -41,6 +46,28 @@ def real_data(*parts):
 def cache_root():
     return os.environ.get("SPHERE_JAX_DATA",
                           os.path.join(os.path.expanduser("~"), ".cache", "sphere_jax"))
+
+
+def compile_cache_dir():
+    """Where compiled XLA programs are kept: ``$SPHERE_JAX_COMPILE_CACHE`` (``off`` or empty:
+    nowhere, None), else ``~/.cache/sphere_jax/xla/<host>``. XLA:CPU compiles for the CPU it
+    runs on, so ``<host>`` names the CPU model and its instruction-set flags: machines that
+    share a home folder never run each other's programs."""
+    chosen = os.environ.get("SPHERE_JAX_COMPILE_CACHE")
+    if chosen is not None:
+        return None if chosen.strip().lower() in ("", "off", "0", "none") else chosen
+    return os.path.join(os.path.expanduser("~"), ".cache", "sphere_jax", "xla", _host_key())
+
+
+def _host_key():
+    cpu = platform.machine() + platform.processor()
+    try:
+        with open("/proc/cpuinfo") as f:
+            lines = [ln for ln in f if ln.startswith(("model name", "flags", "Features"))]
+        cpu += "".join(sorted(set(lines)))
+    except OSError:                        # not Linux: the platform's description only
+        pass
+    return hashlib.sha256(cpu.encode()).hexdigest()[:12]
 
 
 def weights_root():

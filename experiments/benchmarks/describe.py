@@ -11,7 +11,9 @@ real scans) at ``--keypoints`` keypoints:
 * ``peak_rss_gb``: the process's peak resident memory;
 * ``register_s``: :func:`sphere_jax.register` end to end on one real pair (redkitchen 5 → 0),
   cold (compilation included, as a user's first call), and its stages in
-  ``register_stages``.
+  ``register_stages``; ``register_warm_s`` the same in a second process that finds the
+  first's compiled programs on disk (:mod:`sphere_jax.compile_cache`), as a user's next
+  ``experiments.register``.
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ import os
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 import warnings
 
@@ -41,13 +44,11 @@ def run(keypoints=5000, only=None, **_):
     for method in METHODS:
         if only and only not in method:
             continue
-        out = subprocess.run([sys.executable, "-m", "experiments.benchmarks.describe", method,
-                              str(keypoints)], capture_output=True, text=True,
-                             cwd=os.path.dirname(os.path.dirname(os.path.dirname(
-                                 os.path.abspath(__file__)))))
-        if out.returncode != 0:
-            raise RuntimeError(f"describe benchmark of {method} failed:\n{out.stderr[-2000:]}")
-        rec = json.loads(out.stdout.strip().splitlines()[-1])
+        with tempfile.TemporaryDirectory(prefix="sphere_jax_bench_xla_") as cache:
+            out = _measure_in_process(method, keypoints, cache)
+            warm = json.loads(_measure_in_process(method, keypoints, cache, "warm"))
+        rec = json.loads(out)
+        rec["register_warm_s"] = warm["register_s"]
         gflops = rec.pop("gflop")
         rec["gflop_per_keypoint"] = None if gflops is None else round(gflops, 4)
         rate = None if gflops is None else gflops / (rec["ms_per_keypoint"] * 1e-3)
@@ -57,6 +58,18 @@ def run(keypoints=5000, only=None, **_):
         records.append(rec)
         print(json.dumps(rec), file=sys.stderr, flush=True)      # partial results survive
     return records
+
+
+def _measure_in_process(method, keypoints, cache, *what):
+    """The last stdout line of :func:`measure` (or :func:`register_time`) run in a fresh
+    process whose compiled programs go to ``cache``."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-m", "experiments.benchmarks.describe", method,
+                          str(keypoints), *what], capture_output=True, text=True, cwd=root,
+                         env={**os.environ, "SPHERE_JAX_COMPILE_CACHE": cache})
+    if out.returncode != 0:
+        raise RuntimeError(f"describe benchmark of {method} failed:\n{out.stderr[-2000:]}")
+    return out.stdout.strip().splitlines()[-1]
 
 
 def fragments(keypoints):
@@ -116,17 +129,25 @@ def _flops(method, chunk_patches):
     return total
 
 
-def measure(method, keypoints):
-    """The record of one method (run in a fresh process by :func:`run`)."""
-    from sphere_jax import align, paths
+def register_time(method, keypoints):
+    """``(seconds, result, load seconds)`` of :func:`sphere_jax.align.register` end to end on
+    the benchmark's pair, files read included."""
+    from sphere_jax import align
     from sphere_jax.data.readers import io
-    from sphere_jax.features import methods
-    frag, files = fragments(keypoints)
+    _, files = fragments(keypoints)
     t0 = time.perf_counter()
     src, dst = (io.read_points(f).points for f in files)
     load_s = time.perf_counter() - t0
     result = align.register(src, dst, method=method, n_keypoints=keypoints)
-    register_s = time.perf_counter() - t0
+    return time.perf_counter() - t0, result, load_s
+
+
+def measure(method, keypoints):
+    """The record of one method (run in a fresh process by :func:`run`)."""
+    from sphere_jax import paths
+    from sphere_jax.features import methods
+    frag, _ = fragments(keypoints)
+    register_s, result, load_s = register_time(method, keypoints)
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     describe = methods.descriptor(method, 0.30, bundles)
     warm = dataclasses.replace(frag, keypoints=frag.keypoints[:256])
@@ -146,4 +167,10 @@ def measure(method, keypoints):
 
 
 if __name__ == "__main__":
-    print(json.dumps(measure(sys.argv[1], int(sys.argv[2]))))
+    from sphere_jax import compile_cache
+    compile_cache.enable()                       # $SPHERE_JAX_COMPILE_CACHE, set by run()
+    if sys.argv[3:] == ["warm"]:
+        print(json.dumps({"register_s": round(register_time(sys.argv[1],
+                                                             int(sys.argv[2]))[0], 1)}))
+    else:
+        print(json.dumps(measure(sys.argv[1], int(sys.argv[2]))))
