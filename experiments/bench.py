@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 
 from absl import app, flags
 
@@ -51,4 +52,8 @@ def main(argv):
 
 
 if __name__ == "__main__":
+    # What a suite times must not depend on what an earlier command left compiled on disk:
+    # no persistent cache here or in the suites' processes, unless one is named (the describe
+    # suite measures the warm case in a folder of its own).
+    os.environ.setdefault("SPHERE_JAX_COMPILE_CACHE", "off")
     cli.run(main)
