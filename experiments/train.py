@@ -59,7 +59,7 @@ def main(_):
     if config is None:
         raise app.UsageError("--config is required, e.g. --config=sound:small")
     _set_host_devices(f.host_devices)
-    import jax                                      # after XLA_FLAGS: nothing of JAX ran yet
+    import jax              # configured by cli.run, but no backend started: XLA_FLAGS holds
     from sphere_jax import parallel, training
     from sphere_jax.features import whitening_fit
     if f.distributed or f.coordinator or f.num_processes is not None:

@@ -1,7 +1,7 @@
 """A persistent XLA compilation cache, so that a second ``register`` does not compile again.
 
-Compiling the shipped networks is a large share of a command's first seconds (``register
---method=lead@compass``: about 10 s on 2 cores), and every new process pays it again. JAX can keep
+Compiling the shipped networks costs every new process seconds (``register
+--method=lead@compass``: 5.8 of its 56.9 s on 2 cores, docs/performance.md). JAX can keep
 compiled programs on disk; :func:`enable` turns that on for this process, in
 :func:`sphere_jax.paths.compile_cache_dir` (``~/.cache/sphere_jax/xla/<host>``, one folder per
 CPU model and feature set, because XLA:CPU compiles for the host's instruction set; set
