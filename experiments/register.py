@@ -39,7 +39,11 @@ def main(argv=None):
     parser.add_argument("--voxel", type=cli.scale, default="auto")
     parser.add_argument("--radius", type=cli.scale, default="auto")
     parser.add_argument("--keypoints", type=int, default=align.DEFAULT_KEYPOINTS,
-                        help="random keypoints per cloud (fewer: faster, lower recall)")
+                        help="random keypoints per cloud (fewer: faster, lower recall); half "
+                             "are described first, the rest only if those do not register "
+                             "with confidence")
+    parser.add_argument("--no-progressive", action="store_true",
+                        help="describe all the keypoints at once")
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")
     parser.add_argument("--adapt", type=float, default=None, metavar="MINUTES",
                         help="adapt the method's learned frames (Compass, SOUND) to these two "
@@ -70,7 +74,8 @@ def main(argv=None):
         result = align.register(source, target, args.method, args.voxel, args.radius,
                                 args.keypoints, args.seed, args.bundle, not args.no_icp,
                                 args.min_inliers, args.min_fitness, args.adapt,
-                                os.path.join(args.out, "adapted") if args.out else None)
+                                os.path.join(args.out, "adapted") if args.out else None,
+                                not args.no_progressive)
     print(result.summary())
     if not result.ok:                              # scripts over many pairs can tell
         sys.exit(FAILED)

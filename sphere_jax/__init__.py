@@ -108,14 +108,17 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
 
 
 def register(source, target, method=None, voxel="auto", radius="auto", n_keypoints=None,
-             seed=0, bundle=None, icp=True, adapt=None, adapt_workdir=None, **limits):
+             seed=0, bundle=None, icp=True, adapt=None, adapt_workdir=None, progressive=True,
+             **limits):
     """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d clouds or file paths):
     voxel grid → keypoints → descriptors → mutual matches → RANSAC → point-to-plane ICP.
 
     ``method``: a name of :mod:`sphere_jax.features.registry` (default
     :data:`sphere_jax.align.DEFAULT_METHOD`, the shipped LEAD-PN; ``lead@compass``, ``sound``,
     ``fpfh``, ``shot``, ...); ``n_keypoints`` per cloud (default
-    :data:`sphere_jax.align.DEFAULT_KEYPOINTS`). ``voxel`` and ``radius`` default to a scale
+    :data:`sphere_jax.align.DEFAULT_KEYPOINTS`), a random half of them described first
+    (``progressive``: the rest only when that half does not register with confidence).
+    ``voxel`` and ``radius`` default to a scale
     chosen from the clouds (:func:`sphere_jax.align.auto_scale`). ``adapt``: minutes of
     adaptation of the method's networks to these two scans first, without labels (kept in
     ``adapt_workdir``). ``limits``: ``min_inliers``, ``min_fitness`` (below them the result
@@ -124,11 +127,12 @@ def register(source, target, method=None, voxel="auto", radius="auto", n_keypoin
     Returns:
       :class:`sphere_jax.align.Registration`: ``transform`` (4×4, ``p_target = T p_source``),
       ``inliers``, ``matches``, ``fitness``, ``rmse``, the ``voxel`` and ``radius`` used and the
-      ``seconds`` of each stage; ``.summary()`` prints them.
+      ``seconds`` of each stage, the ``keypoints`` described; ``.summary()`` prints them.
     """
     from sphere_jax import align
     # None, not any false value, means the default: n_keypoints=0 is refused by align.
     method = align.DEFAULT_METHOD if method is None else method
     n_keypoints = align.DEFAULT_KEYPOINTS if n_keypoints is None else n_keypoints
     return align.register(source, target, method, voxel, radius, n_keypoints, seed, bundle,
-                          icp, adapt=adapt, adapt_workdir=adapt_workdir, **limits)
+                          icp, adapt=adapt, adapt_workdir=adapt_workdir,
+                          progressive=progressive, **limits)

@@ -36,6 +36,11 @@ DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descripto
 # Per cloud: the fewest that keep LEAD-PN's registration recall on the 27 redkitchen pairs
 # (5000: 23/27, 2500: 19/27, 1000: 19/27; the low-overlap pairs gain, docs/performance.md).
 DEFAULT_KEYPOINTS = 5000
+# register describes half of them first and stops there when RANSAC's consensus has at least
+# this many inliers and ICP confirms it; otherwise it describes the other half and registers
+# with all. On the 27 redkitchen pairs no registration from half the keypoints with this many
+# inliers was wrong (docs/performance.md).
+CONFIDENT_INLIERS = 40
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
@@ -67,6 +72,7 @@ class Registration:
     seconds: dict           # per stage
     reason: str = ""        # why it failed; '' when it succeeded
     adaptation: str = ""    # what adapting the frames did (register(adapt=...)), per network
+    keypoints: tuple = ()   # (described, drawn) per cloud, source first
 
     @property
     def ok(self) -> bool:
@@ -80,8 +86,15 @@ class Registration:
                if np.isfinite(self.fitness) else "no ICP")
         return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "
                 f"{self.matches} mutual matches, {self.inliers} RANSAC inliers; {icp}\n"
-                f"voxel {self.voxel:.4g}, radius {self.radius:.4g}\n{times}"
+                f"voxel {self.voxel:.4g}, radius {self.radius:.4g}{self._described()}\n"
+                f"{times}"
                 + (f"\nadapted {self.adaptation}" if self.adaptation else ""))
+
+
+    def _described(self) -> str:
+        if not self.keypoints:
+            return ""
+        return "; keypoints described " + ", ".join(f"{d} of {n}" for d, n in self.keypoints)
 
 
 def middle_side(points_Nx3) -> float:
@@ -114,7 +127,7 @@ def auto_scale(*clouds):
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
              n_keypoints=DEFAULT_KEYPOINTS, seed=0, bundle=None, icp=True,
              min_inliers=MIN_INLIERS, min_fitness=MIN_FITNESS, adapt=None,
-             adapt_workdir=None) -> Registration:
+             adapt_workdir=None, progressive=True) -> Registration:
     """Register ``source`` onto ``target`` (``[N, 3]`` arrays, open3d point clouds or file
     paths, any unit).
 
@@ -128,6 +141,9 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       voxel, radius: grid size and support radius in the clouds' unit, or ``"auto"``
         (:func:`auto_scale`).
       n_keypoints: random keypoints per cloud on the voxel grid.
+      progressive: describe half of them first and stop when that registers with at least
+        ``CONFIDENT_INLIERS`` RANSAC inliers (and ICP agrees); only otherwise describe the rest
+        (``Registration.keypoints`` says how many were). The pair vote describes all at once.
       bundle: a bundle (folder or kind) replacing the shipped one of its kind.
       icp: refine the RANSAC transform by point-to-plane ICP.
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
@@ -159,14 +175,15 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
                                 f"({', '.join(able)})", f"method {chosen.name!r}, {why}")
     seconds, t0 = {}, time.perf_counter()
 
-    def lap(stage):
+    def lap(stage):                     # a stage run twice (progressive) adds up
         nonlocal t0
-        seconds[stage] = time.perf_counter() - t0
+        seconds[stage] = seconds.get(stage, 0.0) + time.perf_counter() - t0
         t0 = time.perf_counter()
 
     min_inliers = checks.non_negative(min_inliers, "min_inliers", integer=True)
     min_fitness = checks.fraction(min_fitness, "min_fitness")
     icp = checks.flag(icp, "icp")
+    progressive = checks.flag(progressive, "progressive")
 
     def fail(reason, matches=0):
         return Registration(np.eye(4), 0, matches, np.nan, np.nan, voxel, radius, method,
@@ -193,8 +210,8 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
                                             adapt, folder)
             lap("adaptation")
         return dataclasses.replace(_match(src, dst, method, bundles, voxel, radius, seed, icp,
-                                          min_inliers, min_fitness, seconds, lap, fail),
-                                   adaptation=note)
+                                          min_inliers, min_fitness, seconds, lap, fail,
+                                          progressive), adaptation=note)
 
 
 def method_bundles(method: registry.Method, bundle=None):
@@ -249,22 +266,51 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
 
 
 def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min_fitness,
-           seconds, lap, fail):
-    """Describe, match, RANSAC and ICP two prepared fragments (:func:`register`)."""
+           seconds, lap, fail, progressive):
+    """Describe, match, RANSAC and ICP two prepared fragments (:func:`register`), half of
+    the keypoints first when ``progressive``."""
     from sphere_jax.features import methods, voted
-    distance = 2.5 * voxel                  # RANSAC's and ICP's reach
+    estimate = functools.partial(_estimate, voxel=voxel, radius=radius, method=method,
+                                 seed=seed, icp=icp, min_inliers=min_inliers,
+                                 min_fitness=min_fitness, seconds=seconds, lap=lap, fail=fail)
+    drawn = (len(src.keypoints), len(dst.keypoints))
     if method in VOTED:
         frames = voted.voted_frames(method, radius, bundles)
-        agree = functools.partial(consensus, max_distance=distance, seed=seed)
+        agree = functools.partial(consensus, max_distance=2.5 * voxel, seed=seed)
         screen = functools.partial(agree, iterations=SCREEN_ITERATIONS)
         inputs, _ = frames.describe_pairs({"target": dst, "source": src},
                                           [("target", "source")], mutual_matches, agree,
                                           screen=screen)
         d_dst, d_src = inputs[("target", "source")]     # p_target = T p_source: (i, j)
-    else:
+        lap("descriptors")
+        return dataclasses.replace(estimate(src, dst, d_src, d_dst),
+                                   keypoints=tuple(zip(drawn, drawn)))
+    describe = methods.descriptor_of_many(method, radius, bundles)
+    # The keypoints come sorted by index, i.e. by place: the first half is a random half.
+    orders = [np.random.default_rng(seed).permutation(n) for n in drawn]
+    described = [None, None]
+    for share in ((0.5, 1.0) if progressive else (1.0,)):
+        upto = [int(np.ceil(share * n)) for n in drawn]
+        done = [0 if d is None else len(d) for d in described]
         # one stream for both scans: no core idles between them
-        d_src, d_dst = methods.descriptor_of_many(method, radius, bundles)([src, dst])
-    lap("descriptors")
+        new = describe([dataclasses.replace(f, keypoints=f.keypoints[o[a:b]])
+                        for f, o, a, b in zip((src, dst), orders, done, upto)])
+        described = [n if d is None else np.concatenate([d, n]) for d, n in zip(described, new)]
+        lap("descriptors")
+        if upto == list(drawn):          # all of them, in their own order again
+            result = estimate(src, dst, *(d[np.argsort(o)] for d, o in zip(described, orders)))
+        else:
+            result = estimate(*(dataclasses.replace(f, keypoints=f.keypoints[o[:b]])
+                                for f, o, b in zip((src, dst), orders, upto)), *described)
+        result = dataclasses.replace(result, keypoints=tuple(zip(upto, drawn)))
+        if upto == list(drawn) or (result.ok and result.inliers >= CONFIDENT_INLIERS):
+            return result
+
+
+def _estimate(src, dst, d_src, d_dst, voxel, radius, method, seed, icp, min_inliers,
+              min_fitness, seconds, lap, fail):
+    """Mutual matches of the described keypoints, RANSAC and ICP: a :class:`Registration`."""
+    distance = 2.5 * voxel                  # RANSAC's and ICP's reach
     ia, ib = mutual_matches(d_src, d_dst)
     lap("matching")
     if len(ia) < MIN_MATCHES:

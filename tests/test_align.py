@@ -72,6 +72,35 @@ def test_auto_scale_follows_extent_and_spacing():
         sphere_jax.register(wall, wall, min_fitness=2)       # no ICP fitness reaches it
 
 
+def test_half_the_keypoints_suffice_when_they_register_with_confidence(pair, monkeypatch,
+                                                                        tmp_path, capsys):
+    """Progressive description: a pair that registers from half its keypoints stops there;
+    one that does not (here: a confidence no consensus reaches) describes the rest and
+    registers with all, as a single pass over all of them does."""
+    (src, dst), t_gt = pair
+    kw = dict(method="fpfh", n_keypoints=4000)
+    monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10)
+    half = sphere_jax.register(src, dst, **kw)
+    assert half.ok and half.keypoints == ((2000, 4000), (2000, 4000)), half.summary()
+    assert "keypoints described 2000 of 4000, 2000 of 4000" in half.summary()
+    monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10 ** 9)
+    rest = sphere_jax.register(src, dst, **kw)
+    whole = sphere_jax.register(src, dst, progressive=False, **kw)
+    assert rest.keypoints == whole.keypoints == ((4000, 4000), (4000, 4000))
+    np.testing.assert_allclose(rest.transform, whole.transform, atol=1e-6)
+    assert (rest.inliers, rest.matches) == (whole.inliers, whole.matches)
+    for result in (half, rest):
+        assert registration.rre_rte(result.transform, t_gt)[0] < 10.0
+    # The time of a stage run twice adds up: two descriptions, two RANSACs.
+    assert set(rest.seconds) == set(whole.seconds)
+    np.save(tmp_path / "src.npy", src)
+    np.save(tmp_path / "dst.npy", dst)
+    monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10)
+    register_cli.main([str(tmp_path / "src.npy"), str(tmp_path / "dst.npy"), "--method=fpfh",
+                       "--keypoints=4000", "--no-progressive"])
+    assert "keypoints described 4000 of 4000, 4000 of 4000" in capsys.readouterr().out
+
+
 def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
     (src, dst), t_gt = pair
     io.write_ply(tmp_path / "src.ply", src)
