@@ -9,7 +9,9 @@ data wait; ``--sizes``, ``--only``, ``--repeats`` steps), ``peers`` (our S2/SO(3
 against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[bench]'``),
 ``describe`` (per method: ms, GFLOP and share of the matmul peak per keypoint, peak RSS and
 ``sphere_jax.register`` end to end on a real pair; ``--keypoints``, ``--only``), ``stages``
-(the shipped Compass and LEAD stage by stage: ms, GFLOP and share of the peak; ``--only``).
+(the shipped Compass and LEAD stage by stage: ms, GFLOP and share of the peak; ``--only``),
+``keypoints`` (register on the 27 redkitchen pairs with half and all the keypoints, and what
+describing half first returns; ``--only=METHOD``, default lead_pn).
 ``--json`` prints one JSON list of the records instead of the table.
 """
 from __future__ import annotations
