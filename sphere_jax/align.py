@@ -53,6 +53,7 @@ MIN_POINTS = 10          # voxelised points per cloud
 MIN_MATCHES = 3          # mutual matches: RANSAC's minimal sample
 MIN_INLIERS = 10         # RANSAC's consensus
 MIN_FITNESS = 0.05       # ICP: share of source points with a target point within reach
+REACH = 2.5              # RANSAC's and ICP's distance, in voxels
 
 
 @dataclasses.dataclass
@@ -89,7 +90,6 @@ class Registration:
                 f"voxel {self.voxel:.4g}, radius {self.radius:.4g}{self._described()}\n"
                 f"{times}"
                 + (f"\nadapted {self.adaptation}" if self.adaptation else ""))
-
 
     def _described(self) -> str:
         if not self.keypoints:
@@ -276,7 +276,7 @@ def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min
     drawn = (len(src.keypoints), len(dst.keypoints))
     if method in VOTED:
         frames = voted.voted_frames(method, radius, bundles)
-        agree = functools.partial(consensus, max_distance=2.5 * voxel, seed=seed)
+        agree = functools.partial(consensus, max_distance=REACH * voxel, seed=seed)
         screen = functools.partial(agree, iterations=SCREEN_ITERATIONS)
         inputs, _ = frames.describe_pairs({"target": dst, "source": src},
                                           [("target", "source")], mutual_matches, agree,
@@ -310,7 +310,7 @@ def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min
 def _estimate(src, dst, d_src, d_dst, voxel, radius, method, seed, icp, min_inliers,
               min_fitness, seconds, lap, fail):
     """Mutual matches of the described keypoints, RANSAC and ICP: a :class:`Registration`."""
-    distance = 2.5 * voxel                  # RANSAC's and ICP's reach
+    distance = REACH * voxel
     ia, ib = mutual_matches(d_src, d_dst)
     lap("matching")
     if len(ia) < MIN_MATCHES:
