@@ -79,6 +79,12 @@ class Registration:
     def ok(self) -> bool:
         return not self.reason
 
+    @property
+    def confident(self) -> bool:
+        """Succeeded with at least :data:`CONFIDENT_INLIERS` RANSAC inliers: from half the
+        keypoints, good enough not to describe the rest."""
+        return self.ok and self.inliers >= CONFIDENT_INLIERS
+
     def summary(self) -> str:
         t = "\n".join("  " + " ".join(f"{v: .6f}" for v in row) for row in self.transform)
         times = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items())
@@ -303,7 +309,7 @@ def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min
             result = estimate(*(dataclasses.replace(f, keypoints=f.keypoints[o[:b]])
                                 for f, o, b in zip((src, dst), orders, upto)), *described)
         result = dataclasses.replace(result, keypoints=tuple(zip(upto, drawn)))
-        if upto == list(drawn) or (result.ok and result.inliers >= CONFIDENT_INLIERS):
+        if upto == list(drawn) or result.confident:
             return result
 
 

@@ -72,21 +72,32 @@ def _measure_in_process(method, keypoints, cache, *what):
     return out.stdout.strip().splitlines()[-1]
 
 
-def fragments(keypoints):
-    """``(fragment to describe, (source, target) files of the pair to register)``."""
+def _pair():
+    """``(scene, i, j)``: the benchmark's pair, redkitchen 0 and 5 (a synthetic room's first
+    pair without the real scans); fragment ``i`` is described, ``j`` registered onto it."""
     import glob
     from sphere_jax import paths
     from sphere_jax.data import pipeline
     from sphere_jax.data.readers import threedmatch
-    from sphere_jax.eval import scenes
     kitchen = paths.real_data("3dmatch", "7-scenes-redkitchen")
     if kitchen and os.path.isdir(kitchen):
-        scene, (i, j) = threedmatch.load_fragment_scene(kitchen), (0, 5)
-    else:
-        first = sorted(glob.glob(os.path.join(pipeline.default_scan_root(), "*",
-                                              "cloud_bin_0.ply")))[0]
-        scene = threedmatch.load_fragment_scene(os.path.dirname(first))
-        i, j = scene.pairs[0]
+        return threedmatch.load_fragment_scene(kitchen), 0, 5
+    first = sorted(glob.glob(os.path.join(pipeline.default_scan_root(), "*",
+                                          "cloud_bin_0.ply")))[0]
+    scene = threedmatch.load_fragment_scene(os.path.dirname(first))
+    return (scene, *scene.pairs[0])
+
+
+def pair_files():
+    """``(source, target)`` files of the pair to register."""
+    scene, i, j = _pair()
+    return scene.fragment_path(j), scene.fragment_path(i)
+
+
+def fragments(keypoints):
+    """``(fragment to describe, (source, target) files of the pair to register)``."""
+    from sphere_jax.eval import scenes
+    scene, i, j = _pair()
     with warnings.catch_warnings():          # the pairs of fragments not here: not used
         warnings.simplefilter("ignore")
         frag = scenes.prepare(scenes.fragment_scene(scene), i, n_keypoints=keypoints)
@@ -129,12 +140,11 @@ def _flops(method, chunk_patches):
     return total
 
 
-def register_time(method, keypoints):
+def register_time(method, keypoints, files):
     """``(seconds, result, load seconds)`` of :func:`sphere_jax.align.register` end to end on
-    the benchmark's pair, files read included."""
+    the pair of ``files`` (source, target), files read included."""
     from sphere_jax import align
     from sphere_jax.data.readers import io
-    _, files = fragments(keypoints)
     t0 = time.perf_counter()
     src, dst = (io.read_points(f).points for f in files)
     load_s = time.perf_counter() - t0
@@ -146,8 +156,8 @@ def measure(method, keypoints):
     """The record of one method (run in a fresh process by :func:`run`)."""
     from sphere_jax import paths
     from sphere_jax.features import methods
-    frag, _ = fragments(keypoints)
-    register_s, result, load_s = register_time(method, keypoints)
+    frag, files = fragments(keypoints)
+    register_s, result, load_s = register_time(method, keypoints, files)
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     describe = methods.descriptor(method, 0.30, bundles)
     warm = dataclasses.replace(frag, keypoints=frag.keypoints[:256])
@@ -170,7 +180,7 @@ if __name__ == "__main__":
     from sphere_jax import compile_cache
     compile_cache.enable()                       # $SPHERE_JAX_COMPILE_CACHE, set by run()
     if sys.argv[3:] == ["warm"]:
-        print(json.dumps({"register_s": round(register_time(sys.argv[1],
-                                                             int(sys.argv[2]))[0], 1)}))
+        seconds = register_time(sys.argv[1], int(sys.argv[2]), pair_files())[0]
+        print(json.dumps({"register_s": round(seconds, 1)}))
     else:
         print(json.dumps(measure(sys.argv[1], int(sys.argv[2]))))

@@ -45,9 +45,9 @@ def pair_record(method, source, target, t_gt, keypoints):
             r = align.register(source, target, method=method, n_keypoints=k, progressive=False)
         rec[name] = {"ok": r.ok, "right": registration.registered(*registration.rre_rte(
                          r.transform, t_gt)), "inliers": int(r.inliers),
-                     "seconds": round(time.perf_counter() - t0, 1)}
+                     "confident": r.confident, "seconds": round(time.perf_counter() - t0, 1)}
     half, whole = rec["half"], rec["whole"]
-    stop = half["ok"] and half["inliers"] >= align.CONFIDENT_INLIERS
+    stop = half["confident"]                      # register's own rule for stopping at half
     rec["progressive"] = {"stopped_at_half": stop, "right": half["right"] if stop else
                           whole["right"], "seconds": half["seconds"] if stop else
                           round(half["seconds"] + whole["seconds"], 1)}

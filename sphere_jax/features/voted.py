@@ -64,7 +64,7 @@ def _lead_vote(radius, bundles, chunk, whiten):
         maps = method_lib.masked((maps, valid), np.nan)
         frames, oriented = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
                                           on_invalid="mask")
-        frames[~oriented] = np.eye(3)
+        frames = method_lib.masked((frames, oriented), np.eye(3))
         desc = turned(maps, frames) if k else maps
         frames[~(valid & oriented)] = np.nan          # no proposal from an undescribed keypoint
         return white(first_white, desc), frames, maps
