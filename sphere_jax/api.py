@@ -275,6 +275,13 @@ def _cached_bundle(path, _stamp):
     return load_bundle(path)
 
 
+def shape_orienter(path):
+    """:func:`orient_shapes` with the whole-shape Compass bundle at ``path``: what
+    :func:`sphere_jax.training.train_and_evaluate` takes as ``orient_shapes`` for a config
+    with ``orient_bundle``."""
+    return functools.partial(orient_shapes, cached_bundle(path))
+
+
 def orient_shapes(bundle, shapes_BxNx3):
     """Shapes turned into the canonical frame a Compass bundle (trained on whole shapes)
     gives them: ``(p − centre) @ F``, in the shapes' own units."""

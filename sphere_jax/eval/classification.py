@@ -32,15 +32,15 @@ def test_points(source, n_points, seed=0):
     return pts.astype(np.float32), labels
 
 
-def accuracy(bundle, points_SxNx3, labels, orient_bundle=None, chunk=64):
-    """Fraction of shapes the classifier bundle labels correctly (Compass-oriented first when
-    ``orient_bundle`` is given)."""
+def accuracy(bundle, points_SxNx3, labels, orient_shapes=None, chunk=64):
+    """Fraction of shapes the classifier bundle labels correctly (turned by ``orient_shapes``
+    first when given: :func:`sphere_jax.api.shape_orienter`)."""
     fwd = jax.jit(lambda x: bundle.model.apply(bundle.variables, x, train=False).logits)
     correct = 0
     for i in range(0, len(points_SxNx3), chunk):
         x = points_SxNx3[i:i + chunk]
-        if orient_bundle is not None:
-            x = api.orient_shapes(orient_bundle, x)
+        if orient_shapes is not None:
+            x = orient_shapes(x)
         logits = np.asarray(fwd(x))
         correct += int(np.sum(np.argmax(logits, -1) == labels[i:i + chunk]))
     return correct / len(points_SxNx3)
@@ -92,16 +92,16 @@ def run(config, workdir, progress=True):
     rows = []
     for method, sub in _method_dirs(config, workdir):
         c = method_config(config, method)
-        training.train_and_evaluate(c, sub, progress)
+        orient = api.shape_orienter(c.orient_bundle) if c.orient_bundle else None
+        training.train_and_evaluate(c, sub, progress, orient_shapes=orient)
         bundle = api.load_bundle(os.path.join(sub, "bundle"))
         source = training.build_source(c)
         pts, labels = test_points(source, c.data.n_points, c.seed)
         rng = np.random.default_rng(c.eval_rotation_seed)
         rotated = np.einsum("bij,bnj->bni", augment.random_rotations(rng, len(pts)), pts)
-        orient = api.cached_bundle(c.orient_bundle) if c.orient_bundle else None
         for split, x in (("NR", pts), ("AR", rotated.astype(np.float32))):
             rows.append({"method": method, "split": split,
-                         "accuracy": accuracy(bundle, x, labels, orient)})
+                         "accuracy": accuracy(bundle, x, labels, orient_shapes=orient)})
     n_test = len(labels) if rows else 0
     md = ("# Rotation-invariant classification\n\n"
           f"**Accuracy on {n_test} test shapes: NR in canonical pose, AR each turned by a seeded "

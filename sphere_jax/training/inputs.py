@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import os
 
-from sphere_jax import api, bundle, checks, models
+from sphere_jax import bundle, checks, models
 from sphere_jax.data import evaluation_scenes, pipeline
 from sphere_jax.data.generators import synthetic
 
@@ -46,9 +46,22 @@ def build_source(config):
                                                                len(groups)))
 
 
-def get_batch(config, source, step, split="train"):
+def check_orient(config, orient_shapes):
+    """A classifier trained on oriented shapes (``config.orient_bundle``) needs the function
+    that orients them; training runs no bundle itself, so the caller passes it
+    (:func:`sphere_jax.api.shape_orienter`)."""
+    if config.get("orient_bundle") and orient_shapes is None:
+        raise checks.ConfigError(
+            "config.orient_bundle", "empty unless train_and_evaluate gets orient_shapes= "
+            "(sphere_jax.api.shape_orienter(config.orient_bundle); experiments.train passes "
+            "it)", config.orient_bundle)
+
+
+def get_batch(config, source, step, split="train", orient_shapes=None):
     """Batch ``step`` of ``split`` (a function of the seed and the step alone: resumed and
-    continued runs draw what the uninterrupted run would have)."""
+    continued runs draw what the uninterrupted run would have). ``orient_shapes``: shapes
+    ``[B, N, 3]`` → the same in a canonical frame, applied to a classifier's shapes when
+    ``config.orient_bundle`` is set (:func:`check_orient`)."""
     spec, bs = models.spec(config.model), config.train.batch_size
     if not isinstance(source, pipeline.ShapeSource):
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
@@ -61,6 +74,5 @@ def get_batch(config, source, step, split="train"):
                             occlusion=config.data.occlusion)
     batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
     if config.get("orient_bundle"):
-        batch["points"] = api.orient_shapes(api.cached_bundle(config.orient_bundle),
-                                            batch["points"])
+        batch["points"] = orient_shapes(batch["points"])
     return batch

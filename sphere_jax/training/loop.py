@@ -27,7 +27,7 @@ from tqdm import tqdm
 from sphere_jax import bundle, checks, model_card, models, parallel, workdirs
 from sphere_jax.data.prefetch import Prefetch
 from sphere_jax.training import checkpoints
-from sphere_jax.training.inputs import build_source, check_roots, get_batch
+from sphere_jax.training.inputs import build_source, check_orient, check_roots, get_batch
 
 
 # ----------------------------------------------------------------------------------------------
@@ -173,7 +173,7 @@ def check_finite(metrics, step, mngr):
 # ----------------------------------------------------------------------------------------------
 
 def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress=True,
-                       init_variables=None, command=None):
+                       init_variables=None, command=None, orient_shapes=None):
     """Train (resuming from the newest checkpoint in ``workdir``, with any device count),
     evaluate, write a bundle. ``init_variables`` (params and batch_stats, e.g. from a bundle)
     start a fresh run from trained weights (test-time adaptation), as ``train.finetune_bundle``
@@ -190,7 +190,9 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
     minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
     bundle records the steps done, so the same command with a later budget resumes.
-    ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`)."""
+    ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`).
+    ``orient_shapes``: what turns a classifier's shapes into the frames of
+    ``config.orient_bundle`` (:func:`sphere_jax.api.shape_orienter`; required with it)."""
     checks.config_values(config)
     models.spec(config.model)                           # an unknown kind, before any work
     for field in ("init_bundle", "finetune_bundle"):     # a resumed run reads neither, but a
@@ -198,11 +200,15 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
             bundle.read_config(config.train[field])
     learning_rate_schedule(config.train)                # so does a bad schedule
     check_roots(config)                                 # so does a data root that is not there
+    check_orient(config, orient_shapes)
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
-        return _train(config, workdir, progress, init_variables, command)
+        return _train(config, workdir, progress, init_variables, command,
+                      functools.partial(get_batch, orient_shapes=orient_shapes))
 
 
-def _train(config, workdir, progress, init_variables, command):
+def _train(config, workdir, progress, init_variables, command, batch_of):
+    """``batch_of(config, source, step[, split])``: :func:`get_batch` with the run's
+    ``orient_shapes``."""
     checkpoints.claim_workdir(workdir, config)
     source = build_source(config)
     if models.spec(config.model).labelled:
@@ -212,7 +218,7 @@ def _train(config, workdir, progress, init_variables, command):
     parallel.check_batch_size(config.train.batch_size, mesh)
     model = training_model(config)
     tx = optimiser()
-    state = init_state(config, model, tx, get_batch(config, source, 0))
+    state = init_state(config, model, tx, batch_of(config, source, 0))
     train_step, eval_step = make_steps(config, model, tx, mesh)
     mngr = checkpoints.checkpoint_manager(workdir, config)
     main_host = jax.process_index() == 0          # the one that logs
@@ -240,7 +246,7 @@ def _train(config, workdir, progress, init_variables, command):
                       int(config.train.get("early_stop_grace", 0) or 0))
     fresh_finetune = init_variables is not None and start == 0 and mngr.latest_step() is None
     if plateau.patience and fresh_finetune:
-        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh))
+        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh, batch_of))
         plateau.reached(before["val_loss"], state, 0)
         if main_host:
             with open(metrics_path, "a") as log:
@@ -253,7 +259,7 @@ def _train(config, workdir, progress, init_variables, command):
     bar = tqdm(total=None if open_ended else config.train.steps, initial=start,
                disable=not (progress and main_host),
                desc=f"{config.model}:{config.get('size', '')}")
-    make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
+    make = lambda step: parallel.shard_batch(batch_of(config, source, step), mesh)
     with open(metrics_path, "a") as log, \
             Prefetch(make, range(start, config.train.steps)) as batches:
         for step, batch in batches:
@@ -271,7 +277,7 @@ def _train(config, workdir, progress, init_variables, command):
                             data_wait_frac=round((batches.wait_s - wait_last) / (now - t_last), 4))
                 t_last, seen, wait_last = now, 0, batches.wait_s
                 if done % config.train.eval_every == 0 or final:
-                    last.update(evaluate(config, source, state, eval_step, mesh))
+                    last.update(evaluate(config, source, state, eval_step, mesh, batch_of))
                     final = plateau.reached(last["val_loss"], state, done) or final
                 if main_host:
                     log.write(json.dumps(last) + "\n")
@@ -328,8 +334,8 @@ class Plateau:
             self.since >= max(self.patience, self.relative * self.best_seen)
 
 
-def evaluate(config, source, state, eval_step, mesh):
+def evaluate(config, source, state, eval_step, mesh, batch_of):
     vals = [eval_step(state, parallel.shard_batch(
-        get_batch(config, source, 10_000_000 + k, "val"), mesh))
+        batch_of(config, source, 10_000_000 + k, "val"), mesh))
         for k in range(config.train.eval_batches)]
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}
