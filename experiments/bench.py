@@ -10,8 +10,8 @@ against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[ben
 ``describe`` (per method: ms, GFLOP and share of the matmul peak per keypoint, peak RSS and
 ``sphere_jax.register`` end to end on a real pair; ``--keypoints``, ``--only``), ``stages``
 (the shipped Compass and LEAD stage by stage: ms, GFLOP and share of the peak; ``--only``),
-``keypoints`` (register on the 27 redkitchen pairs with half and all the keypoints, and what
-describing half first returns; ``--only=METHOD``, default lead_pn).
+``keypoints`` (register on the 27 redkitchen pairs with a quarter, half and all the keypoints,
+and what describing them share by share returns; ``--only=METHOD``, default lead_pn).
 ``--json`` prints one JSON list of the records instead of the table.
 """
 from __future__ import annotations

@@ -39,9 +39,9 @@ def main(argv=None):
     parser.add_argument("--voxel", type=cli.scale, default="auto")
     parser.add_argument("--radius", type=cli.scale, default="auto")
     parser.add_argument("--keypoints", type=int, default=align.DEFAULT_KEYPOINTS,
-                        help="random keypoints per cloud (fewer: faster, lower recall); half "
-                             "are described first, the rest only if those do not register "
-                             "with confidence")
+                        help="random keypoints per cloud (fewer: faster, lower recall); a "
+                             "quarter are described first, then half, then all, until they "
+                             "register with confidence")
     parser.add_argument("--no-progressive", action="store_true",
                         help="describe all the keypoints at once")
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")

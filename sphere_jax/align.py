@@ -36,10 +36,12 @@ DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descripto
 # Per cloud: the fewest that keep LEAD-PN's registration recall on the 27 redkitchen pairs
 # (5000: 23/27, 2500: 19/27, 1000: 19/27; the low-overlap pairs gain, docs/performance.md).
 DEFAULT_KEYPOINTS = 5000
-# register describes half of them first and stops there when RANSAC's consensus has at least
-# this many inliers and ICP confirms it; otherwise it describes the other half and registers
-# with all. On the 27 redkitchen pairs no registration from half the keypoints with this many
-# inliers was wrong (docs/performance.md).
+# register describes a random quarter of them first, then half, then all, and stops at the
+# first share whose registration has at least CONFIDENT_INLIERS RANSAC inliers and ICP's
+# agreement; only the newly drawn keypoints are described at each share. On the 27 redkitchen
+# pairs no registration from a quarter or half of the keypoints with that many inliers was
+# wrong (wrong ones had at most 14; docs/performance.md).
+PROGRESSIVE_SHARES = (0.25, 0.5, 1.0)
 CONFIDENT_INLIERS = 40
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
@@ -81,8 +83,8 @@ class Registration:
 
     @property
     def confident(self) -> bool:
-        """Succeeded with at least :data:`CONFIDENT_INLIERS` RANSAC inliers: from half the
-        keypoints, good enough not to describe the rest."""
+        """Succeeded with at least :data:`CONFIDENT_INLIERS` RANSAC inliers: from a share of
+        the keypoints (:data:`PROGRESSIVE_SHARES`), good enough not to describe more."""
         return self.ok and self.inliers >= CONFIDENT_INLIERS
 
     def summary(self) -> str:
@@ -147,9 +149,11 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       voxel, radius: grid size and support radius in the clouds' unit, or ``"auto"``
         (:func:`auto_scale`).
       n_keypoints: random keypoints per cloud on the voxel grid.
-      progressive: describe half of them first and stop when that registers with at least
-        ``CONFIDENT_INLIERS`` RANSAC inliers (and ICP agrees); only otherwise describe the rest
-        (``Registration.keypoints`` says how many were). The pair vote describes all at once.
+      progressive: describe a quarter of them first, then half, then all
+        (:data:`PROGRESSIVE_SHARES`), and stop at the first share that registers with at least
+        ``CONFIDENT_INLIERS`` RANSAC inliers (and ICP's agreement); each share describes only
+        the keypoints new to it (``Registration.keypoints`` says how many were described).
+        The pair vote describes all at once.
       bundle: a bundle (folder or kind) replacing the shipped one of its kind.
       icp: refine the RANSAC transform by point-to-plane ICP.
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
@@ -273,8 +277,8 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
 
 def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min_fitness,
            seconds, lap, fail, progressive):
-    """Describe, match, RANSAC and ICP two prepared fragments (:func:`register`), half of
-    the keypoints first when ``progressive``."""
+    """Describe, match, RANSAC and ICP two prepared fragments (:func:`register`), share by
+    share of the keypoints (:data:`PROGRESSIVE_SHARES`) when ``progressive``."""
     from sphere_jax.features import methods, voted
     estimate = functools.partial(_estimate, voxel=voxel, radius=radius, method=method,
                                  seed=seed, icp=icp, min_inliers=min_inliers,
@@ -292,10 +296,11 @@ def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min
         return dataclasses.replace(estimate(src, dst, d_src, d_dst),
                                    keypoints=tuple(zip(drawn, drawn)))
     describe = methods.descriptor_of_many(method, radius, bundles)
-    # The keypoints come sorted by index, i.e. by place: the first half is a random half.
+    # The keypoints come sorted by index, i.e. by place: a permutation's first share of them
+    # is a random share.
     orders = [np.random.default_rng(seed).permutation(n) for n in drawn]
     described = [None, None]
-    for share in ((0.5, 1.0) if progressive else (1.0,)):
+    for share in (PROGRESSIVE_SHARES if progressive else (1.0,)):
         upto = [int(np.ceil(share * n)) for n in drawn]
         done = [0 if d is None else len(d) for d in described]
         # one stream for both scans: no core idles between them

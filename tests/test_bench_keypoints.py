@@ -1,20 +1,24 @@
-"""The keypoints suite's records: both registrations of a pair scored against the ground
-truth, and the progressive outcome the threshold decides."""
+"""The keypoints suite's records: every share's registration of a pair scored against the
+ground truth, and the progressive outcome the threshold decides."""
 from experiments.benchmarks import keypoints
 from sphere_jax import align
 from sphere_jax.data import demo
 
 
-def test_a_pair_record_scores_both_ways_and_follows_the_threshold(monkeypatch):
+def test_a_pair_record_scores_every_share_and_follows_the_threshold(monkeypatch):
     (src, dst), t_gt = demo.fragment_pair()
     monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10)
+    assert keypoints.shares(4000) == [1000, 2000, 4000]
     rec = keypoints.pair_record("fpfh", src, dst, t_gt, 4000)
-    assert rec["whole"]["ok"] and rec["whole"]["right"] and rec["half"]["inliers"] > 0
-    stop = rec["half"]["ok"] and rec["half"]["inliers"] >= 10
-    assert rec["progressive"]["stopped_at_half"] == stop
-    assert rec["progressive"]["right"] == rec["half" if stop else "whole"]["right"]
+    assert rec["4000"]["ok"] and rec["4000"]["right"] and rec["1000"]["inliers"] > 0
+    stop = next(k for k in (1000, 2000, 4000)
+                if k == 4000 or rec[str(k)]["ok"] and rec[str(k)]["inliers"] >= 10)
+    assert rec["progressive"]["stopped_at"] == stop
+    assert rec["progressive"]["right"] == rec[str(stop)]["right"]
+    assert rec["progressive"]["seconds"] >= rec[str(stop)]["seconds"]
     rows = [{"pair": [0, 1], **rec}, {"pair": [0, 2], **rec}]
     row = keypoints.summary("fpfh", "3DMatch", rows, 4000)
     assert row["pairs"] == 2 and row["right_4000"] == 2
     assert row["right_progressive"] == 2 * rec["progressive"]["right"]
+    assert f"{stop}: 2" in row["stopped_at"]
     assert row["seconds_progressive"] == round(2 * rec["progressive"]["seconds"], 1)

@@ -1,21 +1,24 @@
-"""Keypoints suite: what ``register`` gains by describing half its keypoints first.
+"""Keypoints suite: what ``register`` gains by describing a share of its keypoints first.
 
 On the 27 redkitchen pairs (14 3DMatch, 13 3DLoMatch; real scans only), for one method
 (``--only``, default LEAD-PN): :func:`sphere_jax.align.register` with all keypoints at once at
-``--keypoints`` and at half as many (``progressive=False`` both: a random half of a random draw
-is a random draw), each pair scored against its ground truth (RRE < 15°, RTE < 0.3 m). One
-record per pair: whether each registration succeeded (``ok``), was right, its RANSAC inliers and
-seconds, and what ``progressive=True`` returns — the half's result when it is ``ok`` with at
-least :data:`~sphere_jax.align.CONFIDENT_INLIERS` inliers, else the whole one — with its
-seconds (the half's, plus the whole's when it goes on). The table is per benchmark.
+each share of ``--keypoints`` in :data:`~sphere_jax.align.PROGRESSIVE_SHARES` (a quarter, half
+and all; ``progressive=False`` each: a random share of a random draw is a random draw), each
+pair scored against its ground truth (RRE < 15°, RTE < 0.3 m). One record per pair: whether
+each registration succeeded (``ok``), was right, its RANSAC inliers and seconds, and what
+``progressive=True`` returns — the first share's result that is ``ok`` with at least
+:data:`~sphere_jax.align.CONFIDENT_INLIERS` inliers, else the whole one — with its seconds: the
+stopping share's, plus the matching, RANSAC and ICP of the shares before it (``register``
+describes each keypoint once). The table is per benchmark.
 """
 from __future__ import annotations
 
 import json
 import os
 import sys
-import time
 import warnings
+
+import numpy as np
 
 METHOD = "lead_pn"
 
@@ -33,24 +36,30 @@ def pair_sets():
             ("3DLoMatch", threedmatch.load_fragment_scene(kitchen, lomatch))]
 
 
+def shares(keypoints):
+    """The keypoint counts ``register`` describes in turn (:data:`~sphere_jax.align.
+    PROGRESSIVE_SHARES` of ``keypoints``)."""
+    from sphere_jax import align
+    return [int(np.ceil(share * keypoints)) for share in align.PROGRESSIVE_SHARES]
+
+
 def pair_record(method, source, target, t_gt, keypoints):
-    """Both registrations of one pair (source onto target) and the progressive outcome."""
+    """Every share's registration of one pair (source onto target), keyed by its keypoint
+    count, and the progressive outcome."""
     from sphere_jax import align
     from sphere_jax.eval import registration
-    rec = {}
-    for name, k in (("half", (keypoints + 1) // 2), ("whole", keypoints)):
-        t0 = time.perf_counter()
+    rec, spent = {}, 0.0
+    for k in shares(keypoints):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             r = align.register(source, target, method=method, n_keypoints=k, progressive=False)
-        rec[name] = {"ok": r.ok, "right": registration.registered(*registration.rre_rte(
-                         r.transform, t_gt)), "inliers": int(r.inliers),
-                     "confident": r.confident, "seconds": round(time.perf_counter() - t0, 1)}
-    half, whole = rec["half"], rec["whole"]
-    stop = half["confident"]                      # register's own rule for stopping at half
-    rec["progressive"] = {"stopped_at_half": stop, "right": half["right"] if stop else
-                          whole["right"], "seconds": half["seconds"] if stop else
-                          round(half["seconds"] + whole["seconds"], 1)}
+        rec[str(k)] = {"ok": r.ok, "right": registration.registered(*registration.rre_rte(
+                           r.transform, t_gt)), "inliers": int(r.inliers),
+                       "confident": r.confident, "seconds": round(sum(r.seconds.values()), 1)}
+        if "progressive" not in rec and (r.confident or k == keypoints):
+            rec["progressive"] = {"stopped_at": k, "right": rec[str(k)]["right"],
+                                  "seconds": round(spent + sum(r.seconds.values()), 1)}
+        spent += sum(v for stage, v in r.seconds.items() if stage != "descriptors")
     return rec
 
 
@@ -73,14 +82,20 @@ def run(keypoints=5000, only=None, **_):
 
 
 def summary(method, bench, pairs, keypoints):
-    """The benchmark's row: pairs registered right and seconds, per way of registering, and
-    the inliers of the half's wrong but ``ok`` registrations (what the threshold must stop)."""
-    right = lambda way: sum(p[way]["right"] for p in pairs)
-    secs = lambda way: round(sum(p[way]["seconds"] for p in pairs), 1)
+    """The benchmark's row: pairs registered right per share and progressively, where the
+    progressive ones stopped, the seconds at all keypoints and progressively, and the
+    inliers of each share's wrong but ``ok`` registrations (what the threshold must stop)."""
+    counts = shares(keypoints)
+    secs = lambda get: round(sum(get(p)["seconds"] for p in pairs), 1)
+    stops = [p["progressive"]["stopped_at"] for p in pairs]
     return {"method": method, "benchmark": bench, "pairs": len(pairs),
-            f"right_{(keypoints + 1) // 2}": right("half"), f"right_{keypoints}": right("whole"),
-            "right_progressive": right("progressive"),
-            "stopped_at_half": sum(p["progressive"]["stopped_at_half"] for p in pairs),
-            f"seconds_{keypoints}": secs("whole"), "seconds_progressive": secs("progressive"),
-            "wrong_ok_half_inliers": sorted(p["half"]["inliers"] for p in pairs
-                                            if p["half"]["ok"] and not p["half"]["right"])}
+            **{f"right_{k}": sum(p[str(k)]["right"] for p in pairs) for k in counts},
+            "right_progressive": sum(p["progressive"]["right"] for p in pairs),
+            "stopped_at": ", ".join(f"{k}: {stops.count(k)}" for k in counts),
+            f"seconds_{keypoints}": secs(lambda p: p[str(keypoints)]),
+            "seconds_progressive": secs(lambda p: p["progressive"]),
+            "wrong_ok_inliers": "; ".join(
+                f"{k}: " + (", ".join(str(i) for i in sorted(
+                    p[str(k)]["inliers"] for p in pairs
+                    if p[str(k)]["ok"] and not p[str(k)]["right"])) or "none")
+                for k in counts)}
