@@ -158,7 +158,8 @@ class Bundle:
     def describe(self, points, keypoints, radius=None, chunk=None, seed=0, frames=None,
                  workers=None, on_invalid="raise", as_open3d=False, whiten="auto"):
         """Descriptors ``[K, D]``. LEAD: the SO(3) descriptor rotated to canonical pose by
-        ``frames`` (``[K, 3, 3]`` rotations, e.g. from a Compass bundle) or, by default,
+        ``frames`` — ``[K, 3, 3]`` rotations, or a Compass bundle that orients the very
+        patches LEAD describes in the same call (:meth:`describe_clouds`) — or, by default,
         FLARE; LEAD-PN: the code of the FLARE-oriented patch; SOUND: self-oriented.
         ``whiten``: the bundle's whitening for the frames used (:mod:`~sphere_jax.features.
         whitening`) — ``"auto"`` its ``default`` one when ``frames`` is None and none when
@@ -166,8 +167,8 @@ class Bundle:
         ``on_invalid`` as in :meth:`orient`; ``as_open3d``: an
         ``open3d.pipelines.registration.Feature`` instead (open3d's RANSAC and FGR take it)."""
         out = self.describe_clouds([(points, keypoints)], radius, chunk, seed,
-                                   None if frames is None else [frames], workers,
-                                   on_invalid, whiten)[0]
+                                   frames if frames is None or isinstance(frames, Bundle)
+                                   else [frames], workers, on_invalid, whiten)[0]
         if not checks.flag(as_open3d, "as_open3d"):
             return out
         if on_invalid == "mask":
@@ -176,20 +177,47 @@ class Bundle:
 
     def describe_clouds(self, clouds, radius=None, chunk=None, seed=0, frames=None,
                         workers=None, on_invalid="raise", whiten="auto"):
-        """:meth:`describe` of several clouds ``[(points, keypoints), ...]`` (``frames``: None
-        or one ``[K, 3, 3]`` per cloud) in one stream of chunks, as :meth:`orient_clouds`."""
+        """:meth:`describe` of several clouds ``[(points, keypoints), ...]`` in one stream of
+        chunks, as :meth:`orient_clouds`. ``frames``: None, one ``[K, 3, 3]`` per cloud, or
+        an orienting bundle (Compass, same ``data.n_points``) run on each chunk's patches in
+        the same jitted call as the descriptor: one support draw and one stream for both
+        networks, the values of orienting first and describing in those frames after."""
         self._can("describe")
         checks.choice(on_invalid, "on_invalid", ON_INVALID)
         white = self._whitening(whiten, frames is not None)
+        fn = self._describe_fn
+        if isinstance(frames, Bundle):
+            fn, frames = self._framed_by(frames), None
         chain = self._chain(clouds, radius, seed, on_invalid, frames)
-        out = stream_chunked(self._describe_fn, chain.make, chain.n, self._chunk(chunk),
-                             workers)
+        out = stream_chunked(fn, chain.make, chain.n, self._chunk(chunk), workers)
         if chain.n == 0:                          # nothing to describe: the width still counts
             unit = jax.ShapeDtypeStruct((1, self.config.data.n_points, 3), jnp.float32)
-            out = np.zeros((0, *jax.eval_shape(self._describe_fn, unit).shape[1:]))
+            out = np.zeros((0, *jax.eval_shape(fn, unit).shape[1:]))
         elif white is not None:
             out = white.apply(out)
         return [s.scatter(o, None, on_invalid) for s, o in zip(chain.streams, chain.split(out))]
+
+    def _framed_by(self, lrf: "Bundle"):
+        """The jitted ``patches -> descriptors`` in the frames ``lrf`` gives the same patches
+        (one per orienting bundle, kept with it)."""
+        if not self.spec.describe_frames:
+            raise checks.InputError("frames", f"None for a {self.kind} bundle (it orients its "
+                                    "patches itself)", f"a {lrf.kind} bundle")
+        lrf._can("orient")
+        if lrf.config.data.n_points != self.config.data.n_points \
+                or lrf.min_support > self.min_support:
+            raise checks.InputError(
+                "frames", f"an orienting bundle whose patches are this {self.kind} bundle's "
+                f"(data.n_points {self.config.data.n_points}, min_support at most "
+                f"{self.min_support}); pass its frames as arrays otherwise",
+                f"a {lrf.kind} bundle with {lrf.config.data.n_points} points and min_support "
+                f"{lrf.min_support}")
+        key = id(lrf)
+        if key not in self._framed:                   # the bundle is kept: its id stays its own
+            describe, orient = self.spec.describe, lrf.spec.orient
+            self._framed[key] = (lrf, jax.jit(lambda p: describe(
+                self.model, self.variables, p, orient(lrf.model, lrf.variables, p))))
+        return self._framed[key][1]
 
     def _whitening(self, whiten, framed: bool):
         """The :class:`~sphere_jax.features.whitening.Whitening` ``whiten`` names, or None."""
@@ -207,6 +235,7 @@ class Bundle:
     # ---- jitted pieces ----------------------------------------------------------------------
 
     def __post_init__(self):
+        self._framed = {}
         spec = self.spec
         if spec.orient is not None:
             self._orient_fn = jax.jit(lambda p: spec.orient(self.model, self.variables, p))

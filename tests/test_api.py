@@ -146,6 +146,41 @@ def test_frames_must_be_rotations_and_only_where_used(sound_bundle):
         api.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=np.eye(3)[None])
 
 
+def _untrained(config_module, **data):
+    config = config_module.get_config("tiny")
+    config.data.update(data)
+    model = models.build(config)
+    x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
+    return api.Bundle(model, reference.init(model, x * 0.3), config)
+
+
+def test_an_orienting_bundle_as_frames_gives_the_values_of_its_frames(sound_bundle):
+    """LEAD with a Compass bundle as ``frames`` runs both on one draw of patches, in one call
+    per chunk: the same descriptors as Compass's frames passed as arrays, bit for bit."""
+    from configs import compass as compass_config
+    lead_bundle, compass = _untrained(lead), _untrained(compass_config)
+    lonely = np.concatenate([CLOUD, [[5, 5, 5]]]).astype(np.float32)
+    clouds = [(lonely, np.array([0, 3000, 7])), (CLOUD, np.arange(10, 15))]
+    frames = [np.where(v[:, None, None], f, np.eye(3)) for f, v in
+              compass.orient_clouds(clouds, radius=0.3, on_invalid="mask")]
+    apart = lead_bundle.describe_clouds(clouds, radius=0.3, frames=frames, on_invalid="mask")
+    joint = lead_bundle.describe_clouds(clouds, radius=0.3, frames=compass, on_invalid="mask")
+    for (a, va), (b, vb) in zip(apart, joint):
+        np.testing.assert_array_equal(va, vb)
+        np.testing.assert_array_equal(a, b)
+    assert not joint[0][1][1] and np.isnan(joint[0][0][1]).all()   # no support: no frame
+    one = lead_bundle.describe(CLOUD, np.arange(10, 15), radius=0.3, frames=compass)
+    np.testing.assert_array_equal(one, joint[1][0])
+    wide = _untrained(compass_config, n_points=32)
+    with pytest.raises(sphere_jax.SphereJaxError, match="frames must be an orienting bundle "
+                                                        "whose patches.*32 points"):
+        lead_bundle.describe(CLOUD, np.arange(4), radius=0.3, frames=wide)
+    with pytest.raises(sphere_jax.SphereJaxError, match="frames must be None for a sound"):
+        api.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=compass)
+    with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be of kind"):
+        lead_bundle.describe(CLOUD, np.arange(4), radius=0.3, frames=lead_bundle)
+
+
 def test_coordinate_keypoints_are_queried_not_added(sound_bundle):
     bundle = api.load_bundle(sound_bundle)
     far = np.array([[3.0, 3.0, 3.0], [3.01, 3.0, 3.0]], np.float32)

@@ -86,14 +86,21 @@ def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None)
         return lambda fs: [one(f) for f in fs]
     if name == "lead_compass":
         lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
+        whiten = "compass" if "compass" in lead.whitenings else None
+        # The shipped pair shares its patches (1024 points): both networks in one call per
+        # chunk, on one draw. Other pairs pass Compass's frames as arrays.
+        shared = (compass.config.data.n_points == lead.config.data.n_points
+                  and compass.min_support <= lead.min_support)
 
         def describe_all(fs):
             clouds = [(f.points, f.keypoints) for f in fs]
-            frames = [masked(o, np.eye(3)) for o in compass.orient_clouds(
-                clouds, radius=radius, chunk=chunk, on_invalid="mask")]
+            frames = compass
+            if not shared:
+                frames = [masked(o, np.eye(3)) for o in compass.orient_clouds(
+                    clouds, radius=radius, chunk=chunk, on_invalid="mask")]
             return [masked(d, np.nan) for d in lead.describe_clouds(
                 clouds, radius=radius, chunk=chunk, frames=frames, on_invalid="mask",
-                whiten="compass" if "compass" in lead.whitenings else None)]
+                whiten=whiten)]
         return describe_all
     model = _bundle(bundles[name])
     return lambda fs: [masked(d, np.nan) for d in model.describe_clouds(

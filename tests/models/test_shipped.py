@@ -3,6 +3,7 @@
 import pytest
 import numpy as np
 
+import sphere_jax
 from tests.models import shipped_outputs
 
 
@@ -18,3 +19,9 @@ def test_shipped_bundles_reproduce_the_fixture():
         assert err <= 1e-5, f"{name}: relative difference {err:.2e}"
     frames = got["compass_orient"]
     assert np.allclose(frames.transpose(0, 2, 1) @ frames, np.eye(3), atol=1e-5)
+    # What register runs for LEAD (Compass): both networks in one call on one draw of patches.
+    bundle = lambda name: sphere_jax.load_bundle(shipped_outputs.bundle(name))
+    joint = bundle("lead").describe(shipped_outputs.cloud(), shipped_outputs.KEYPOINTS,
+                                    radius=shipped_outputs.RADIUS, workers=1,
+                                    frames=bundle("compass"), whiten="compass")
+    np.testing.assert_array_equal(joint, got["lead_compass_describe_whitened"])
