@@ -17,6 +17,9 @@ def test_records_of_a_hand_crafted_method():
     assert rec["ms_per_keypoint"] > 0 and rec["peak_rss_gb"] > 0.1
     assert rec["register_stages"]["load"] >= 0 and rec["register_s"] > 0
     assert rec["register_warm_s"] > 0
+    # register describes a quarter of 200 keypoints first, then half, then all
+    assert len(rec["register_described"]) == 2
+    assert all(d in (50, 100, 200) for d in rec["register_described"])
 
 
 @pytest.mark.slow
