@@ -39,9 +39,9 @@ DEFAULT_KEYPOINTS = 5000
 # register describes a random quarter of them first, then half, then all, and stops at the
 # first share whose registration has at least CONFIDENT_INLIERS RANSAC inliers and ICP's
 # agreement; only the newly drawn keypoints are described at each share. On the 27 redkitchen
-# pairs, with every learned and hand-crafted method, no registration from a quarter or half of
-# the keypoints with that many inliers was wrong (wrong ones had at most 14;
-# docs/performance.md).
+# pairs and LiDAR rescans of them, with every learned and hand-crafted method, no registration
+# from a quarter or half of the keypoints with that many inliers was wrong (wrong ones had at
+# most 14; docs/performance.md).
 PROGRESSIVE_SHARES = (0.25, 0.5, 1.0)
 CONFIDENT_INLIERS = 40
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
