@@ -116,8 +116,8 @@ def register(source, target, method=None, voxel="auto", radius="auto", n_keypoin
     ``method``: a name of :mod:`sphere_jax.features.registry` (default
     :data:`sphere_jax.align.DEFAULT_METHOD`, the shipped LEAD-PN; ``lead@compass``, ``sound``,
     ``fpfh``, ``shot``, ...); ``n_keypoints`` per cloud (default
-    :data:`sphere_jax.align.DEFAULT_KEYPOINTS`), a random half of them described first
-    (``progressive``: the rest only when that half does not register with confidence).
+    :data:`sphere_jax.align.DEFAULT_KEYPOINTS`), described a random quarter, then half, then all
+    (``progressive``: stopping at the first share that registers with confidence).
     ``voxel`` and ``radius`` default to a scale
     chosen from the clouds (:func:`sphere_jax.align.auto_scale`). ``adapt``: minutes of
     adaptation of the method's networks to these two scans first, without labels (kept in

@@ -276,6 +276,17 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     return out, "; ".join(notes)
 
 
+def share_counts(n: int, progressive: bool = True) -> list[int]:
+    """How many of ``n`` drawn keypoints are described once each share is
+    (:data:`PROGRESSIVE_SHARES`; all at once when not ``progressive``)."""
+    return [int(np.ceil(share * n)) for share in (PROGRESSIVE_SHARES if progressive else (1.0,))]
+
+
+def _take(f, idx):
+    """Fragment ``f`` with its keypoints ``f.keypoints[idx]``."""
+    return dataclasses.replace(f, keypoints=f.keypoints[idx])
+
+
 def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min_fitness,
            seconds, lap, fail, progressive):
     """Describe, match, RANSAC and ICP two prepared fragments (:func:`register`), share by
@@ -301,21 +312,19 @@ def _match(src, dst, method, bundles, voxel, radius, seed, icp, min_inliers, min
     # is a random share.
     orders = [np.random.default_rng(seed).permutation(n) for n in drawn]
     described = [None, None]
-    for share in (PROGRESSIVE_SHARES if progressive else (1.0,)):
-        upto = [int(np.ceil(share * n)) for n in drawn]
+    for upto in zip(*(share_counts(n, progressive) for n in drawn)):
         done = [0 if d is None else len(d) for d in described]
         # one stream for both scans: no core idles between them
-        new = describe([dataclasses.replace(f, keypoints=f.keypoints[o[a:b]])
-                        for f, o, a, b in zip((src, dst), orders, done, upto)])
+        new = describe([_take(f, o[a:b]) for f, o, a, b in zip((src, dst), orders, done, upto)])
         described = [n if d is None else np.concatenate([d, n]) for d, n in zip(described, new)]
         lap("descriptors")
-        if upto == list(drawn):          # all of them, in their own order again
+        if upto == drawn:                # all of them, in their own order again
             result = estimate(src, dst, *(d[np.argsort(o)] for d, o in zip(described, orders)))
         else:
-            result = estimate(*(dataclasses.replace(f, keypoints=f.keypoints[o[:b]])
-                                for f, o, b in zip((src, dst), orders, upto)), *described)
+            result = estimate(*(_take(f, o[:b]) for f, o, b in zip((src, dst), orders, upto)),
+                              *described)
         result = dataclasses.replace(result, keypoints=tuple(zip(upto, drawn)))
-        if upto == list(drawn) or result.confident:
+        if upto == drawn or result.confident:
             return result
 
 

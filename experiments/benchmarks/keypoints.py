@@ -18,8 +18,6 @@ import os
 import sys
 import warnings
 
-import numpy as np
-
 METHOD = "lead_pn"
 
 
@@ -40,7 +38,7 @@ def shares(keypoints):
     """The keypoint counts ``register`` describes in turn (:data:`~sphere_jax.align.
     PROGRESSIVE_SHARES` of ``keypoints``)."""
     from sphere_jax import align
-    return [int(np.ceil(share * keypoints)) for share in align.PROGRESSIVE_SHARES]
+    return align.share_counts(keypoints)
 
 
 def pair_record(method, source, target, t_gt, keypoints):
