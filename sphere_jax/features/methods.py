@@ -65,6 +65,18 @@ def masked(values_valid, fill):
     return values
 
 
+def frames_for(model, lrf, clouds, radius, chunk=None):
+    """What descriptor bundle ``model`` (LEAD) takes as ``frames`` for the LRFs of orienting
+    bundle ``lrf`` (Compass) on ``clouds``: ``lrf`` itself where the two share their patches
+    (the shipped pair, 1024 points: one draw, both networks in one call per chunk), else its
+    frames as arrays, identity where a keypoint's support is too small."""
+    if lrf.config.data.n_points == model.config.data.n_points \
+            and lrf.min_support <= model.min_support:
+        return lrf
+    return [masked(o, np.eye(3)) for o in lrf.orient_clouds(clouds, radius=radius, chunk=chunk,
+                                                            on_invalid="mask")]
+
+
 def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     """``describe(fragment) -> [K, D]`` for method ``name`` with support ``radius`` (metres);
     ``bundles`` maps a model kind (lead, compass, lead_pn, sound) to a bundle path."""
@@ -87,19 +99,12 @@ def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None)
     if name == "lead_compass":
         lead, compass = _bundle(bundles["lead"]), _bundle(bundles["compass"])
         whiten = "compass" if "compass" in lead.whitenings else None
-        # The shipped pair shares its patches (1024 points): both networks in one call per
-        # chunk, on one draw. Other pairs pass Compass's frames as arrays.
-        shared = (compass.config.data.n_points == lead.config.data.n_points
-                  and compass.min_support <= lead.min_support)
 
         def describe_all(fs):
             clouds = [(f.points, f.keypoints) for f in fs]
-            frames = compass
-            if not shared:
-                frames = [masked(o, np.eye(3)) for o in compass.orient_clouds(
-                    clouds, radius=radius, chunk=chunk, on_invalid="mask")]
             return [masked(d, np.nan) for d in lead.describe_clouds(
-                clouds, radius=radius, chunk=chunk, frames=frames, on_invalid="mask",
+                clouds, radius=radius, chunk=chunk,
+                frames=frames_for(lead, compass, clouds, radius, chunk), on_invalid="mask",
                 whiten=whiten)]
         return describe_all
     model = _bundle(bundles[name])

@@ -99,8 +99,7 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
     radius = float(model.config.data.radius)
     sources = {"default": None}
     for name, lrf in frame_bundles.items():
-        sources[name] = [methods.masked(o, np.eye(3))
-                         for o in lrf.orient_clouds(clouds, radius, on_invalid="mask")]
+        sources[name] = methods.frames_for(model, lrf, clouds, radius)
     fitted, statement, used = {}, {}, {}
     for name, frames in sources.items():
         out = model.describe_clouds(clouds, radius, frames=frames, on_invalid="mask",
