@@ -54,6 +54,42 @@ def test_fragments_are_cached_and_found_as_scans(frames, tmp_path, monkeypatch):
     assert fusion.fused_source(os.path.dirname(files[0])) == os.path.abspath(frames)
 
 
+def test_open3d_layout_reads_as_the_same_sequence(frames, tmp_path):
+    """The same frames in open3d's layout (``depth/``, ``color/``, ``trajectory.log``, an
+    intrinsics JSON in the parent) read as the same sequence and fuse to the same fragment."""
+    import json
+    import shutil
+    from sphere_jax.data.readers import threedmatch
+    seq = rgbd.read_frame_sequence(frames)
+    run = [0, 1, 2]
+    folder = tmp_path / "scene" / "RGBD"
+    for sub in ("depth", "color"):
+        os.makedirs(folder / sub)
+    for f in run:
+        shutil.copy(seq.depth[f], folder / "depth" / f"{f:05d}.png")
+        shutil.copy(seq.color[f], folder / "color" / f"{f:05d}.png")
+    # open3d's trajectory.log: one block per frame, in order (its header is not a pair)
+    threedmatch.write_pair_blocks(str(folder / rgbd.TRAJECTORY),
+                                  {(f, f): seq.poses[f] for f in run}, len(run))
+    with open(tmp_path / "scene" / "camera_sensor.json", "w") as out:
+        json.dump({"width": 640, "height": 480,
+                   "intrinsic_matrix": seq.intrinsics.T.ravel().tolist()}, out)
+    assert rgbd.is_frame_sequence(folder)
+    other = rgbd.read_frame_sequence(folder)
+    assert len(other) == len(run)
+    np.testing.assert_allclose(other.poses, seq.poses[run], atol=1e-9)
+    np.testing.assert_allclose(other.intrinsics, seq.intrinsics)
+    np.testing.assert_array_equal(fusion.fuse(other, [0, 1, 2]), fusion.fuse(seq, run))
+    with open(tmp_path / "scene" / "camera_other.json", "w") as out:      # which one?
+        json.dump({"intrinsic_matrix": [1] * 9}, out)
+    with pytest.raises(io.DataError, match="2 candidate camera intrinsics"):
+        rgbd.read_frame_sequence(folder)
+    os.remove(tmp_path / "scene" / "camera_other.json")
+    os.remove(folder / "depth" / "00002.png")
+    with pytest.raises(io.DataError, match="3 poses for 2 depth images"):
+        rgbd.read_frame_sequence(folder)
+
+
 def test_fragment_runs():
     assert fusion.fragment_runs(50, 25, 25) == [list(range(25)), list(range(25, 50))]
     assert fusion.fragment_runs(63, 25, 25)[-1] == list(range(50, 63))   # ≥ half a run

@@ -161,24 +161,61 @@ class FrameSequence:
         return len(self.depth)
 
 
+TRAJECTORY = "trajectory.log"      # open3d's layout: camera-to-world poses, one per frame
+
+
 def is_frame_sequence(folder) -> bool:
-    return bool(glob.glob(os.path.join(str(folder), "frame-*.depth.png")))
+    """A posed RGB-D sequence in the 3DMatch toolbox layout or open3d's."""
+    folder = str(folder)
+    return bool(glob.glob(os.path.join(folder, "frame-*.depth.png"))) or (
+        os.path.isfile(os.path.join(folder, TRAJECTORY))
+        and bool(glob.glob(os.path.join(folder, "depth", "*.png"))))
+
+
+def _beside(folder, patterns, what):
+    """The one file matching ``patterns`` in ``folder`` or else its parent."""
+    for where in (folder, os.path.dirname(os.path.abspath(folder))):
+        found = sorted({p for pat in patterns for p in glob.glob(os.path.join(where, pat))})
+        if len(found) > 1:
+            raise DataError(where, f"{len(found)} candidate {what} files "
+                                   f"({', '.join(map(os.path.basename, found))}); keep one")
+        if found:
+            return found[0]
+    raise DataError(folder, f"no {what} ({' or '.join(patterns)}) in the folder or its parent")
+
+
+def _read_open3d_sequence(folder) -> FrameSequence:
+    """open3d's layout: ``depth/*.png`` and ``color/*`` (sorted by name), ``trajectory.log``
+    (a camera-to-world pose per frame, in gt.log's block format, in file order) and the
+    intrinsics as an open3d JSON (``camera*.json``) in the folder or its parent."""
+    from sphere_jax.data.readers import threedmatch
+    depth = sorted(glob.glob(os.path.join(folder, "depth", "*.png")))
+    color = sorted(p for ext in ("png", "jpg")
+                   for p in glob.glob(os.path.join(folder, "color", f"*.{ext}")))
+    poses, _ = threedmatch.read_gt_log(os.path.join(folder, TRAJECTORY))
+    if len(poses) != len(depth):
+        raise DataError(os.path.join(folder, TRAJECTORY),
+                        f"{len(poses)} poses for {len(depth)} depth images in depth/")
+    if color and len(color) != len(depth):
+        raise DataError(os.path.join(folder, "color"),
+                        f"{len(color)} colour images for {len(depth)} depth images")
+    intrinsics = read_intrinsics(_beside(folder, ("camera*.json",), "camera intrinsics"))
+    return FrameSequence(folder, color or [None] * len(depth), depth,
+                         np.stack(list(poses.values())), intrinsics)
 
 
 def read_frame_sequence(folder) -> FrameSequence:
-    """A folder in the 3DMatch toolbox layout: ``frame-N.{color,depth}.png`` and
-    ``frame-N.pose.txt``, with ``camera-intrinsics.txt`` in the folder or its parent."""
+    """A posed RGB-D sequence: the 3DMatch toolbox layout (``frame-N.{color,depth}.png`` and
+    ``frame-N.pose.txt``, with ``camera-intrinsics.txt`` in the folder or its parent) or
+    open3d's (``depth/``, ``color/``, ``trajectory.log``, ``camera*.json``)."""
     folder = str(folder)
+    if not glob.glob(os.path.join(folder, "frame-*.depth.png")) and is_frame_sequence(folder):
+        return _read_open3d_sequence(folder)
     stems = sorted(p[:-len(".depth.png")]
                    for p in glob.glob(os.path.join(folder, "frame-*.depth.png")))
     if not stems:
         raise DataError(folder, "no frame-N.depth.png frames")
-    k_path = next((p for p in (os.path.join(folder, "camera-intrinsics.txt"),
-                               os.path.join(os.path.dirname(os.path.abspath(folder)),
-                                            "camera-intrinsics.txt")) if os.path.isfile(p)),
-                  None)
-    if k_path is None:
-        raise DataError(folder, "no camera-intrinsics.txt in the folder or its parent")
+    k_path = _beside(folder, ("camera-intrinsics.txt",), "camera intrinsics")
     color = [s + ".color.png" if os.path.isfile(s + ".color.png") else None for s in stems]
     return FrameSequence(folder, color, [s + ".depth.png" for s in stems],
                          np.stack([read_pose(s + ".pose.txt") for s in stems]),
