@@ -96,7 +96,9 @@ class Registration:
                if np.isfinite(self.fitness) else "no ICP")
         return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "
                 f"{self.matches} mutual matches, {self.inliers} RANSAC inliers; {icp}\n"
-                f"voxel {self.voxel:.4g}, radius {self.radius:.4g}{self._described()}\n"
+                + (f"voxel {self.voxel:.4g}, radius {self.radius:.4g}"
+                   if np.isfinite(self.voxel) else "no voxel or radius chosen")
+                + f"{self._described()}\n"
                 f"{times}"
                 + (f"\nadapted {self.adaptation}" if self.adaptation else ""))
 
@@ -169,8 +171,11 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     chosen = registry.resolve(method, ("descriptor", "voted"))
     method = chosen.key
     source, target = (_points(x, name) for x, name in ((source, "source"), (target, "target")))
+    few = [(name, len(p)) for name, p in (("source", source), ("target", target))
+           if len(p) < MIN_POINTS]
+    # Too few points to measure a scale by: the result below says so, with no scale chosen.
     auto_voxel, auto_radius = (auto_scale(source, target) if "auto" in (voxel, radius)
-                               else (None, None))
+                               and not few else (np.nan, np.nan))
     voxel = auto_voxel if voxel == "auto" else checks.positive(voxel, "voxel")
     radius = auto_radius if radius == "auto" else checks.positive(radius, "radius")
     n_keypoints = checks.positive(n_keypoints, "n_keypoints", integer=True)
@@ -200,8 +205,6 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         return Registration(np.eye(4), 0, matches, np.nan, np.nan, voxel, radius, method,
                             seconds, reason)
 
-    few = [(name, len(p)) for name, p in (("source", source), ("target", target))
-           if len(p) < MIN_POINTS]
     if few:
         return fail(reason="too few points: " + ", ".join(f"{n} has {k}" for n, k in few)
                     + f" (at least {MIN_POINTS})")

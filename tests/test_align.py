@@ -130,6 +130,9 @@ def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
     exits 3; an --out that cannot be a folder is refused before any work."""
     tiny = sphere_jax.register(np.eye(3), np.eye(3) + 1.0, method="fpfh")
     assert not tiny.ok and tiny.reason.startswith("too few points: source has 3")
+    # One finite point cannot give a scale: none is reported (it was 'voxel inf').
+    one = sphere_jax.register(np.zeros((1, 3)), np.eye(3), method="fpfh")
+    assert np.isnan(one.voxel) and "no voxel or radius chosen" in one.summary()
     (src, dst), _ = pair
     far = np.random.default_rng(0).normal(size=(5000, 3)) * 0.5      # noise, no shared surface
     lost = sphere_jax.register(src, far, method="fpfh", voxel=0.02, radius=0.3, n_keypoints=500)
