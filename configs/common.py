@@ -22,8 +22,9 @@ B24_INFER_CHUNK = 64
 # 96 fragments; the embedded default rooms of seed 0 are the main job's evaluation scenes).
 # Of the clean real scans of ../shared/data only open3d's RGB-D frames (one fused fragment)
 # reach a 2 cm voxel and 30 cm supports (open3d's Feature fragments are 5 cm voxels: most
-# supports fall under min_points). As a fifth of every batch it raised a B = 8 Compass's
-# repeatability by 8-11 % (docs/training.md); the shipped networks have not been retrained so.
+# supports fall under min_points). As a fifth of every batch it raised Compass's redkitchen
+# repeatability by 11 % at B = 8 and at the shipped B = 12 (docs/training.md); the shipped
+# bundles are the rooms-only ones.
 MID_ROOT = "embedded:1,embedded:2,embedded:3,embedded:4"
 
 
