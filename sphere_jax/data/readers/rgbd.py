@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from sphere_jax import files
+from sphere_jax.data.readers import threedmatch
 from sphere_jax.data.readers.io import Cloud, DataError, check_exists, parse_numbers
 
 
@@ -188,7 +189,6 @@ def _read_open3d_sequence(folder) -> FrameSequence:
     """open3d's layout: ``depth/*.png`` and ``color/*`` (sorted by name), ``trajectory.log``
     (a camera-to-world pose per frame, in gt.log's block format, in file order) and the
     intrinsics as an open3d JSON (``camera*.json``) in the folder or its parent."""
-    from sphere_jax.data.readers import threedmatch
     depth = sorted(glob.glob(os.path.join(folder, "depth", "*.png")))
     color = sorted(p for ext in ("png", "jpg")
                    for p in glob.glob(os.path.join(folder, "color", f"*.{ext}")))
