@@ -165,10 +165,16 @@ class FrameSequence:
 TRAJECTORY = "trajectory.log"      # open3d's layout: camera-to-world poses, one per frame
 
 
+def _toolbox_stems(folder):
+    """``folder/frame-N`` for each depth frame of the 3DMatch toolbox layout, sorted."""
+    return sorted(p[:-len(".depth.png")]
+                  for p in glob.glob(os.path.join(folder, "frame-*.depth.png")))
+
+
 def is_frame_sequence(folder) -> bool:
     """A posed RGB-D sequence in the 3DMatch toolbox layout or open3d's."""
     folder = str(folder)
-    return bool(glob.glob(os.path.join(folder, "frame-*.depth.png"))) or (
+    return bool(_toolbox_stems(folder)) or (
         os.path.isfile(os.path.join(folder, TRAJECTORY))
         and bool(glob.glob(os.path.join(folder, "depth", "*.png"))))
 
@@ -209,10 +215,9 @@ def read_frame_sequence(folder) -> FrameSequence:
     ``frame-N.pose.txt``, with ``camera-intrinsics.txt`` in the folder or its parent) or
     open3d's (``depth/``, ``color/``, ``trajectory.log``, ``camera*.json``)."""
     folder = str(folder)
-    if not glob.glob(os.path.join(folder, "frame-*.depth.png")) and is_frame_sequence(folder):
+    stems = _toolbox_stems(folder)
+    if not stems and is_frame_sequence(folder):
         return _read_open3d_sequence(folder)
-    stems = sorted(p[:-len(".depth.png")]
-                   for p in glob.glob(os.path.join(folder, "frame-*.depth.png")))
     if not stems:
         raise DataError(folder, "no frame-N.depth.png frames")
     k_path = _beside(folder, ("camera-intrinsics.txt",), "camera intrinsics")
