@@ -219,6 +219,17 @@ def stamp(path):
     return None if times[0] is None else times
 
 
+def variables_digest(variables) -> str:
+    """A hash of a variable tree's names, shapes, dtypes and values: which weights a fine-tune
+    or an adaptation started from, wherever they were loaded from."""
+    digest = hashlib.sha256()
+    for key, leaf in jax.tree_util.tree_flatten_with_path(variables)[0]:
+        leaf = np.asarray(leaf)
+        digest.update(f"{jax.tree_util.keystr(key)}|{leaf.shape}|{leaf.dtype}".encode() + b"\0")
+        digest.update(np.ascontiguousarray(leaf).tobytes())
+    return digest.hexdigest()[:16]
+
+
 def fingerprint(path) -> str | None:
     """A hash of what decides the bundle's outputs — its config, variables and descriptor
     whitening, not the model card that evaluations complete — the same in any checkout

@@ -1,6 +1,7 @@
 import gc
 import json
 import os
+import re
 
 import jax
 import numpy as np
@@ -153,7 +154,7 @@ def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, t
         training.train_and_evaluate(both, str(tmp_path / "d"), progress=False)
 
 
-def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
+def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path, capsys):
     from experiments import adapt
     config = tiny("compass", small_root, steps=1)
     scans = config.data.root
@@ -165,6 +166,17 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path):
     moved = _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle")
     # Two Adam steps of lr 1e-3 move each weight by at most ~2e-3: adapted, not re-initialised.
     assert 0 < moved < 5e-3
+    # The workdir is an adaptation of those weights: the same command resumes it, while a
+    # retrained bundle adapted there is refused rather than continuing the old adaptation.
+    adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={scans}",
+                "--steps=2", "--patience=0", f"--workdir={tmp_path / 'adapted'}"])
+    config.seed = 1
+    training.train_and_evaluate(config, str(tmp_path / "src2"), progress=False)
+    with pytest.raises(SystemExit):
+        adapt.main([f"--bundle={tmp_path / 'src2' / 'bundle'}", f"--data={scans}",
+                    "--steps=2", "--patience=0", f"--workdir={tmp_path / 'adapted'}"])
+    assert re.search("adaptation of weights [0-9a-f]{16}; this run adapts weights [0-9a-f]{16}",
+                     capsys.readouterr().err)
 
 
 def test_an_adaptation_that_never_improves_ships_the_weights_it_started_from(small_root,

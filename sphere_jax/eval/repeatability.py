@@ -15,12 +15,12 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import api, models, training
+from sphere_jax import api, bundle, models, training
 from sphere_jax.eval import processes, report, resume, tasks
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.features import methods as method_lib
 from sphere_jax.spherical import so3
-from sphere_jax.training import adaptation
+from sphere_jax.training import adaptation, checkpoints
 
 METHODS = method_lib.LRFS
 RHO = 0.97
@@ -129,13 +129,28 @@ def adapted_bundles(config, bundles, names, workdir, progress):
     for kind, spec in models.SPECS.items():
         if spec.orient is not None and kind in names:
             trained = api.load_bundle(bundles[kind])
+            folder = os.path.join(workdir, f"adapted_{kind}")
+            _set_aside_if_stale(folder, trained)
             out[kind], _ = training.adapt(trained, scene_lib.data_root(config),
-                                          config.adapt_steps,
-                                          os.path.join(workdir, f"adapted_{kind}"),
+                                          config.adapt_steps, folder,
                                           progress=progress,
                                           data=adaptation.data_at_scale(
                                               trained, config.data.voxel, config.data.radius))
     return out
+
+
+def _set_aside_if_stale(folder, trained):
+    """An adaptation in ``folder`` of other weights than ``trained``'s (the bundle was
+    retrained since) is this run's own leftover: moved to ``folder-of-<digest>``, kept, so
+    that the rerun adapts afresh instead of being refused."""
+    old = checkpoints.adapted_from(folder)
+    if os.path.isdir(folder) and old != bundle.variables_digest(trained.variables):
+        aside, n = f"{folder}-of-{old or 'unrecorded'}", 1
+        while os.path.exists(aside):
+            n += 1
+            aside = f"{folder}-of-{old or 'unrecorded'}-{n}"
+        os.replace(folder, aside)
+        print(f"{folder} adapted other weights than this run's bundle: moved to {aside}")
 
 
 check_data = scene_lib.check_data          # the data root, before any work (tasks.run)

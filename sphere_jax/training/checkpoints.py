@@ -26,18 +26,38 @@ WORKDIR_CONFIG = "config.json"
 
 def claim_workdir(workdir, config):
     """Refuse a workdir whose checkpoints are another model's (restoring them would fail deep
-    in orbax, or worse, succeed on a same-shaped model)."""
+    in orbax, or worse, succeed on a same-shaped model), or an adaptation of other weights
+    (resuming it would quietly continue those: a retrained bundle adapted in the same folder)."""
     path = os.path.join(workdir, WORKDIR_CONFIG)
+    if not (os.path.isfile(path) and os.path.isdir(os.path.join(workdir, "checkpoints"))):
+        return
+    with open(path) as f:
+        theirs = json.load(f)
     mine = {"model": config.model, "model_kwargs": _plain(config.get("model_kwargs", {}))}
-    if os.path.isfile(path):
-        with open(path) as f:
-            theirs = json.load(f)
-        theirs = {k: theirs.get(k) for k in mine}
-        if theirs != mine and os.path.isdir(os.path.join(workdir, "checkpoints")):
-            raise checks.ConfigError(
-                f"--workdir {workdir} holds the checkpoints of model {theirs['model']} "
-                f"{theirs['model_kwargs']}; this config trains {mine['model']} "
-                f"{mine['model_kwargs']}: choose another workdir")
+    theirs_model = {k: theirs.get(k) for k in mine}
+    if theirs_model != mine:
+        raise checks.ConfigError(
+            f"--workdir {workdir} holds the checkpoints of model {theirs_model['model']} "
+            f"{theirs_model['model_kwargs']}; this config trains {mine['model']} "
+            f"{mine['model_kwargs']}: choose another workdir")
+    started = adapted_from(workdir)
+    if started != (config.train.get("adapted_from") or ""):
+        what = (f"an adaptation of weights {started}" if started else
+                "a run that recorded no starting weights")
+        raise checks.ConfigError(
+            f"--workdir {workdir} holds the checkpoints of {what}; this run adapts weights "
+            f"{config.train.get('adapted_from') or '(none: from scratch)'}: choose another "
+            f"workdir (or move that one away to start afresh)")
+
+
+def adapted_from(workdir) -> str:
+    """The digest of the weights the run in ``workdir`` adapted (``train.adapted_from``,
+    :func:`sphere_jax.bundle.variables_digest`); '' for a run from scratch or no run."""
+    path = os.path.join(workdir, WORKDIR_CONFIG)
+    if not os.path.isfile(path):
+        return ""
+    with open(path) as f:
+        return json.load(f).get("train", {}).get("adapted_from") or ""
 
 
 def record_workdir(workdir, config):

@@ -53,3 +53,23 @@ def test_real_bunny_repeatability_above_chance_and_rotation_invariant(bunny_pair
     assert rep["n"] > 200
     assert rep["rep"] > 0.1
     assert abs(rep["rep"] - rep_rot["rep"]) < 0.03
+
+
+def test_an_adaptation_of_a_retrained_bundle_is_set_aside_not_resumed(tmp_path):
+    """The adapted-frames run's own adaptation folder, left by a bundle since retrained, is
+    moved aside (kept) so that the rerun adapts the new weights; one of the same weights
+    stays to be resumed."""
+    import json
+    from types import SimpleNamespace
+    from sphere_jax import bundle
+    trained = SimpleNamespace(variables={"params": {"w": np.arange(4, dtype=np.float32)}})
+    mine = bundle.variables_digest(trained.variables)
+    folder = tmp_path / "adapted_compass"
+    folder.mkdir()
+    (folder / "config.json").write_text(json.dumps({"train": {"adapted_from": mine}}))
+    repeatability._set_aside_if_stale(str(folder), trained)
+    assert folder.is_dir()                                   # the same weights: kept there
+    retrained = SimpleNamespace(variables={"params": {"w": np.arange(4, dtype=np.float32) + 1}})
+    repeatability._set_aside_if_stale(str(folder), retrained)
+    assert not folder.exists()
+    assert json.loads((tmp_path / f"adapted_compass-of-{mine}" / "config.json").read_text())
