@@ -20,12 +20,13 @@ B24_INFER_CHUNK = 64
 
 # The shipped bundles' training scans: the synthetic training rooms of seeds 1-4 (eight rooms,
 # 96 fragments; the embedded default rooms of seed 0 are the main job's evaluation scenes).
+MID_ROOT = "embedded:1,embedded:2,embedded:3,embedded:4"
 # Of the clean real scans of ../shared/data only open3d's RGB-D frames (one fused fragment)
 # reach a 2 cm voxel and 30 cm supports (open3d's Feature fragments are 5 cm voxels: most
-# supports fall under min_points). As a fifth of every batch it raised Compass's redkitchen
-# repeatability by 11 % at B = 8 and at the shipped B = 12 (docs/training.md); the shipped
-# bundles are the rooms-only ones.
-MID_ROOT = "embedded:1,embedded:2,embedded:3,embedded:4"
+# supports fall under min_points). As a fifth of Compass's batches it raised the redkitchen
+# repeatability by 11 % at B = 8 and B = 12 (docs/training.md), so the shipped Compass trains
+# on it; the descriptors have not been trained with it.
+REAL_SCAN = "shared/open3d_testdata/RGBD"
 
 
 def check_size(arg):
@@ -87,11 +88,14 @@ def base(size: str) -> ml_collections.ConfigDict:
     return c
 
 
-def shipped_recipe(c, steps, batch_size, learning_rate=1e-3):
+def shipped_recipe(c, steps, batch_size, learning_rate=1e-3, real_scan=False):
     """Make ``c`` (a 'mid' config of a model trained on scans) the whole recipe of its shipped
-    bundle: clean data (no scan of an evaluation scene), steps, batch and the learning-rate
-    schedule, so that ``python -m experiments.train --config=KIND:mid`` reproduces it."""
-    c.data.root = MID_ROOT
+    bundle: clean data (no scan of an evaluation scene; ``real_scan``: open3d's fused RGB-D
+    frames as a fifth of every batch), steps, batch and the learning-rate schedule, so that
+    ``python -m experiments.train --config=KIND:mid`` reproduces it."""
+    c.data.root = MID_ROOT + (f",{REAL_SCAN}" if real_scan else "")
+    if real_scan:
+        c.data.root_weights = ",".join(["1"] * len(c.data.root.split(",")))
     c.train.update(steps=steps, batch_size=batch_size, learning_rate=learning_rate,
                    schedule="warmup_cosine", warmup_steps=200, final_lr_fraction=0.01)
     return c
