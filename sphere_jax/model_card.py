@@ -150,9 +150,9 @@ def render(bundle_dir):
         out += [f"- wall time of the training loop: "
                 f"{wall_time_s(lines, train.batch_size) / 60:.1f} min"]
     folders = data.get("folders", {})
-    unit = "shapes" if data.get("kind") == "shapes" else "scans"
-    out += ["- data: " + ", ".join(f"`{k}` ({v} {unit})" if v is not None else f"`{k}`"
-                                   for k, v in folders.items())]
+    unit = "shape" if data.get("kind") == "shapes" else "scan"
+    out += ["- data: " + ", ".join(f"`{k}` ({v} {unit}{'s' * (v != 1)})" if v is not None
+                                   else f"`{k}`" for k, v in folders.items())]
     if "keypoints" in data:
         out += [f"- keypoints: {data['keypoints'].get('train')} training, "
                 f"{data['keypoints'].get('val')} held out for the validation loss"]
