@@ -69,13 +69,14 @@ def data_of(record) -> str:
 
 
 def stamp(record) -> str:
-    """One line: the command, the data, the bundles and their steps, the date and wall
-    time."""
-    bundles = ", ".join(f"{k} `{v['path']}` ({v['steps_done']} steps)"
+    """One line: the command, the data, the bundles (steps and fingerprint: which weights),
+    the date and wall time."""
+    bundles = ", ".join(f"{k} `{v['path']}` ({v['steps_done']} steps"
+                        + (f", fingerprint {v['fingerprint']})" if v.get("fingerprint") else ")")
                         for k, v in record.get("bundles", {}).items())
     took = f"{record['wall_s'] / 60:.0f} min"
-    if record.get("resumed"):
-        took = f"resumed from the results an interrupted run kept, the last part {took}"
+    if record.get("resumed"):        # after an interruption, or for the unchanged bundles
+        took = f"reusing the results an earlier run of it kept, the rest in {took}"
     return (f"`{record.get('command') or 'python -m experiments.evaluate'}`\n\n"
             f"Data: {data_of(record)}. Bundles: {bundles or 'none'}. Run {record['date']}, "
             f"{took}.")

@@ -305,3 +305,16 @@ def test_a_rerun_in_the_same_workdir_replaces_its_card_entry(tmp_path):
     card = (path / model_card.CARD).read_text()
     assert "on runs/new_place" in card and "/old/place" not in card and "/elsewhere" not in card
     assert "on /moved" in card
+
+
+def test_a_stamp_names_which_weights_and_whether_results_were_reused():
+    record = {"command": "python -m experiments.evaluate --config=eval_lrf", "task": "lrf",
+              "config": {"data": {"root": "scans"}}, "date": "2026-01-02", "wall_s": 120.0,
+              "bundles": {"compass": {"path": "w/bundle", "steps_done": 60,
+                                      "fingerprint": "0123456789abcdef"}}}
+    line = publish.stamp(record)
+    assert "compass `w/bundle` (60 steps, fingerprint 0123456789abcdef)" in line
+    assert line.endswith("Run 2026-01-02, 2 min.")
+    record["resumed"] = True
+    assert "reusing the results an earlier run of it kept, the rest in 2 min" in \
+        publish.stamp(record)
