@@ -40,7 +40,7 @@ def claim_workdir(workdir, config):
             f"--workdir {workdir} holds the checkpoints of model {theirs_model['model']} "
             f"{theirs_model['model_kwargs']}; this config trains {mine['model']} "
             f"{mine['model_kwargs']}: choose another workdir")
-    started = adapted_from(workdir)
+    started = _started_from(theirs)
     if started != (config.train.get("adapted_from") or ""):
         what = (f"an adaptation of weights {started}" if started else
                 "a run that recorded no starting weights")
@@ -57,7 +57,11 @@ def adapted_from(workdir) -> str:
     if not os.path.isfile(path):
         return ""
     with open(path) as f:
-        return json.load(f).get("train", {}).get("adapted_from") or ""
+        return _started_from(json.load(f))
+
+
+def _started_from(recorded: dict) -> str:
+    return recorded.get("train", {}).get("adapted_from") or ""
 
 
 def record_workdir(workdir, config):
