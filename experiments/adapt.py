@@ -70,9 +70,9 @@ def main(argv=None):
             checks.positive(getattr(args, name), name, integer=name == "steps")
         checks.non_negative(args.patience, "patience", integer=True)
         bundle = api.load_bundle(args.bundle)
-        data = auto_data(bundle, args.data, args.voxel, args.radius)
-        if args.compass is not None:
+        if args.compass is not None:                # before reading any scan
             whitening_fit.frame_bundle(args.compass)
+        data = auto_data(bundle, args.data, args.voxel, args.radius)
         workdirs.prepare(args.workdir, "--workdir")
     with cli.refusals():
         print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "

@@ -2,6 +2,7 @@ import gc
 import json
 import os
 import re
+import shutil
 
 import jax
 import numpy as np
@@ -145,6 +146,17 @@ def test_finetune_starts_at_step_one_from_a_bundle_with_other_data(small_root, t
     assert steps == [1, 2]
     moved = _max_change(path, tmp_path / "b" / "bundle")
     assert 0 < moved < 5e-3                       # two Adam steps from the bundle, not an init
+    # The same command resumes (nothing left to do); once the bundle at that path has been
+    # retrained, the workdir's fine-tune of the old weights is refused, not continued.
+    training.train_and_evaluate(tune, str(tmp_path / "b"), progress=False)
+    first.seed += 1
+    training.train_and_evaluate(first, str(tmp_path / "a2"), progress=False)
+    shutil.rmtree(path)
+    shutil.copytree(tmp_path / "a2" / "bundle", path)
+    tune.train.steps = 3
+    with pytest.raises(checks.ConfigError, match="a run from weights [0-9a-f]{16}; this run "
+                                                 "starts from weights [0-9a-f]{16}"):
+        training.train_and_evaluate(tune, str(tmp_path / "b"), progress=False)
     other = tiny("lead", small_root, steps=2, finetune_bundle=path)
     other.model_kwargs.features = (4, 4, 4, 2, 1)
     with pytest.raises(checks.ConfigError, match="finetune_bundle.*another model_kwargs"):
@@ -175,7 +187,7 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path, capsy
     with pytest.raises(SystemExit):
         adapt.main([f"--bundle={tmp_path / 'src2' / 'bundle'}", f"--data={scans}",
                     "--steps=2", "--patience=0", f"--workdir={tmp_path / 'adapted'}"])
-    assert re.search("adaptation of weights [0-9a-f]{16}; this run adapts weights [0-9a-f]{16}",
+    assert re.search("a run from weights [0-9a-f]{16}; this run starts from weights [0-9a-f]{16}",
                      capsys.readouterr().err)
 
 

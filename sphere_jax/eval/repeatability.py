@@ -143,7 +143,7 @@ def _set_aside_if_stale(folder, trained):
     """An adaptation in ``folder`` of other weights than ``trained``'s (the bundle was
     retrained since) is this run's own leftover: moved to ``folder-of-<digest>``, kept, so
     that the rerun adapts afresh instead of being refused."""
-    old = checkpoints.adapted_from(folder)
+    old = checkpoints.started_from(folder)
     if os.path.isdir(folder) and old != bundle.variables_digest(trained.variables):
         aside, n = f"{folder}-of-{old or 'unrecorded'}", 1
         while os.path.exists(aside):

@@ -83,7 +83,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
         config.data.copy_draw = "support"
     config.train.init_bundle = config.train.finetune_bundle = ""
     # Which weights this adapts: a workdir holding an adaptation of others is refused.
-    config.train.adapted_from = bundle.variables_digest(trained.variables)
+    config.train.started_from = bundle.variables_digest(trained.variables)
     config.train.steps = int(steps)
     config.train.update(schedule="warmup_cosine", warmup_steps=min(WARMUP, int(steps) - 1),
                         final_lr_fraction=1.0,       # after the warm-up, constant

@@ -26,8 +26,9 @@ WORKDIR_CONFIG = "config.json"
 
 def claim_workdir(workdir, config):
     """Refuse a workdir whose checkpoints are another model's (restoring them would fail deep
-    in orbax, or worse, succeed on a same-shaped model), or an adaptation of other weights
-    (resuming it would quietly continue those: a retrained bundle adapted in the same folder)."""
+    in orbax, or worse, succeed on a same-shaped model), or a run that started from other
+    trained weights (resuming it would quietly continue those: a retrained bundle adapted or
+    fine-tuned in the same folder)."""
     path = os.path.join(workdir, WORKDIR_CONFIG)
     if not (os.path.isfile(path) and os.path.isdir(os.path.join(workdir, "checkpoints"))):
         return
@@ -41,18 +42,19 @@ def claim_workdir(workdir, config):
             f"{theirs_model['model_kwargs']}; this config trains {mine['model']} "
             f"{mine['model_kwargs']}: choose another workdir")
     started = _started_from(theirs)
-    if started != (config.train.get("adapted_from") or ""):
-        what = (f"an adaptation of weights {started}" if started else
+    if started != (config.train.get("started_from") or ""):
+        what = (f"a run from weights {started}" if started else
                 "a run that recorded no starting weights")
         raise checks.ConfigError(
-            f"--workdir {workdir} holds the checkpoints of {what}; this run adapts weights "
-            f"{config.train.get('adapted_from') or '(none: from scratch)'}: choose another "
-            f"workdir (or move that one away to start afresh)")
+            f"--workdir {workdir} holds the checkpoints of {what}; this run starts from "
+            f"weights {config.train.get('started_from') or '(none: from scratch)'}: choose "
+            f"another workdir (or move that one away to start afresh)")
 
 
-def adapted_from(workdir) -> str:
-    """The digest of the weights the run in ``workdir`` adapted (``train.adapted_from``,
-    :func:`sphere_jax.bundle.variables_digest`); '' for a run from scratch or no run."""
+def started_from(workdir) -> str:
+    """The digest of the trained weights the run in ``workdir`` adapted or fine-tuned
+    (``train.started_from``, :func:`sphere_jax.bundle.variables_digest`); '' for a run from
+    scratch, a continued one, or no run."""
     path = os.path.join(workdir, WORKDIR_CONFIG)
     if not os.path.isfile(path):
         return ""
@@ -61,7 +63,7 @@ def adapted_from(workdir) -> str:
 
 
 def _started_from(recorded: dict) -> str:
-    return recorded.get("train", {}).get("adapted_from") or ""
+    return recorded.get("train", {}).get("started_from") or ""
 
 
 def record_workdir(workdir, config):

@@ -198,6 +198,12 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     for field in ("init_bundle", "finetune_bundle"):     # a resumed run reads neither, but a
         if config.train.get(field):                      # wrong path is still a typo to say
             bundle.read_config(config.train[field])
+    if config.train.get("finetune_bundle") and not config.train.get("started_from"):
+        # Which weights it fine-tunes: a workdir holding a fine-tune of others (the bundle was
+        # retrained since) is refused rather than resumed (checkpoints.claim_workdir).
+        config = ml_collections.ConfigDict(config.to_dict())
+        config.train.started_from = bundle.variables_digest(
+            bundle.read_variables(config.train.finetune_bundle))
     learning_rate_schedule(config.train)                # so does a bad schedule
     check_roots(config)                                 # so does a data root that is not there
     check_orient(config, orient_shapes)

@@ -66,7 +66,7 @@ def test_an_adaptation_of_a_retrained_bundle_is_set_aside_not_resumed(tmp_path):
     mine = bundle.variables_digest(trained.variables)
     folder = tmp_path / "adapted_compass"
     folder.mkdir()
-    (folder / "config.json").write_text(json.dumps({"train": {"adapted_from": mine}}))
+    (folder / "config.json").write_text(json.dumps({"train": {"started_from": mine}}))
     repeatability._set_aside_if_stale(str(folder), trained)
     assert folder.is_dir()                                   # the same weights: kept there
     retrained = SimpleNamespace(variables={"params": {"w": np.arange(4, dtype=np.float32) + 1}})
