@@ -178,6 +178,11 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path, capsy
     moved = _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle")
     # Two Adam steps of lr 1e-3 move each weight by at most ~2e-3: adapted, not re-initialised.
     assert 0 < moved < 5e-3
+    # Validated on enough patches that a few flipped frames do not decide when it stops.
+    from sphere_jax import bundle
+    from sphere_jax.training import adaptation
+    train = bundle.read_config(tmp_path / "adapted" / "bundle").train
+    assert train.eval_batches * train.batch_size >= adaptation.EVAL_PATCHES >= 256
     # The workdir is an adaptation of those weights: the same command resumes it, while a
     # retrained bundle adapted there is refused rather than continuing the old adaptation.
     adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={scans}",
