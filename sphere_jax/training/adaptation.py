@@ -63,8 +63,9 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     bundle is written to ``workdir/bundle`` (re-running resumes) and its model card lists the
     scans, evaluation scenes among them included. ``data`` overrides ``config.data`` fields
     for scans of another scale (voxel, radius, keypoint_leaf). It stops early once the
-    validation loss (held-back keypoints of the same scans) has not improved for ``patience``
-    evaluations (0: never) nor for as many as it took to reach its best. Returns ``(path, last metrics)``."""
+    validation loss (:data:`EVAL_PATCHES` held-back patches of the same scans) has not improved
+    for ``patience`` evaluations (0: never) nor for as many as it took to reach its best.
+    Returns ``(path, last metrics)``."""
     if trained.kind not in adaptable_kinds():
         raise checks.ConfigError(f"bundle {trained.kind!r} was trained with labels; adaptation "
                                  f"is for {', '.join(adaptable_kinds())} bundles")
