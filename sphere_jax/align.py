@@ -44,6 +44,10 @@ DEFAULT_KEYPOINTS = 5000
 # most 14; docs/performance.md).
 PROGRESSIVE_SHARES = (0.25, 0.5, 1.0)
 CONFIDENT_INLIERS = 40
+# Fewer inliers than that and the result says it is unconfirmed even from all keypoints:
+# wrong registrations that passed MIN_INLIERS and MIN_FITNESS there had up to 26 (LEAD-PN on
+# 3DLoMatch; 25 on the LiDAR rescans). At object scale inliers prove less: two of the bunny's
+# view pairs are wrong with 62 and 120.
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
@@ -64,7 +68,9 @@ class Registration:
     """``transform`` maps the source onto the target: ``p_target = T · p_source``. A
     registration that did not succeed says so: ``ok`` is False and ``reason`` says why (too few
     points, no mutual matches, no RANSAC consensus, ICP fitness below the threshold); its
-    ``transform`` is then the best guess, not a result."""
+    ``transform`` is then the best guess, not a result. One that succeeded with fewer than
+    :data:`CONFIDENT_INLIERS` RANSAC inliers is not ``confident``: its summary calls it
+    unconfirmed."""
     transform: np.ndarray
     inliers: int            # matches within the RANSAC distance under the RANSAC transform
     matches: int            # mutual nearest neighbours in descriptor space
@@ -91,7 +97,11 @@ class Registration:
     def summary(self) -> str:
         t = "\n".join("  " + " ".join(f"{v: .6f}" for v in row) for row in self.transform)
         times = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items())
-        status = "registered" if self.ok else f"FAILED: {self.reason}"
+        status = ("registered" if self.confident else
+                  f"registered, unconfirmed: {self.inliers} RANSAC inliers, fewer than the "
+                  f"{CONFIDENT_INLIERS} below which registrations of the redkitchen pairs were "
+                  f"sometimes wrong; check the result before using it"
+                  if self.ok else f"FAILED: {self.reason}")
         icp = (f"ICP fitness {self.fitness:.3f}, RMSE {self.rmse:.4g}"
                if np.isfinite(self.fitness) else "no ICP")
         return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "

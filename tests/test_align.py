@@ -1,6 +1,7 @@
 """``sphere_jax.register``: two real fragments registered within 5° and 10 cm of the ground
 truth by the shipped LEAD-PN, the same pair at 10× the scale by the automatic scale, and the
 command line's outputs."""
+import dataclasses
 import os
 import re
 
@@ -154,6 +155,19 @@ def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
         register_cli.main([str(tmp_path / "a.npy"), str(tmp_path / "a.npy"),
                            f"--out={tmp_path / 'taken'}"])
     assert out.value.code == 2 and "--out" in capsys.readouterr().err
+
+
+def test_few_inliers_are_reported_unconfirmed(pair):
+    """Registered with fewer than CONFIDENT_INLIERS: still a result, but its summary warns."""
+    (src, dst), t_gt = pair
+    result = sphere_jax.register(src, dst, method="fpfh", voxel=0.02, radius=0.3)
+    assert result.ok, result.summary()
+    enough = dataclasses.replace(result, inliers=align.CONFIDENT_INLIERS)
+    assert enough.confident and enough.summary().startswith("registered\n"), enough.summary()
+    few = dataclasses.replace(result, inliers=align.CONFIDENT_INLIERS - 1)
+    assert few.ok and not few.confident
+    assert few.summary().startswith(f"registered, unconfirmed: {align.CONFIDENT_INLIERS - 1} "
+                                    "RANSAC inliers"), few.summary()
 
 
 @pytest.mark.slow
