@@ -11,6 +11,7 @@ def test_a_pair_record_scores_every_share_and_follows_the_threshold(monkeypatch)
     assert keypoints.shares(4000) == [1000, 2000, 4000]
     rec = keypoints.pair_record("fpfh", src, dst, t_gt, 4000)
     assert rec["4000"]["ok"] and rec["4000"]["right"] and rec["1000"]["inliers"] > 0
+    assert rec["4000"]["matches"] >= rec["4000"]["inliers"] and rec["4000"]["fitness"] > 0.05
     stop = next(k for k in (1000, 2000, 4000)
                 if k == 4000 or rec[str(k)]["ok"] and rec[str(k)]["inliers"] >= 10)
     assert rec["progressive"]["stopped_at"] == stop

@@ -5,11 +5,11 @@ On the 27 redkitchen pairs (14 3DMatch, 13 3DLoMatch; real scans only), for one 
 each share of ``--keypoints`` in :data:`~sphere_jax.align.PROGRESSIVE_SHARES` (a quarter, half
 and all; ``progressive=False`` each: a random share of a random draw is a random draw), each
 pair scored against its ground truth (RRE < 15°, RTE < 0.3 m). One record per pair: whether
-each registration succeeded (``ok``), was right, its RANSAC inliers and seconds, and what
-``progressive=True`` returns — the first share's result that is ``ok`` with at least
-:data:`~sphere_jax.align.CONFIDENT_INLIERS` inliers, else the whole one — with its seconds: the
-stopping share's, plus the matching, RANSAC and ICP of the shares before it (``register``
-describes each keypoint once). The table is per benchmark.
+each registration succeeded (``ok``), was right, its RANSAC inliers, mutual matches, ICP
+fitness and seconds, and what ``progressive=True`` returns — the first share's result that is
+``ok`` with at least :data:`~sphere_jax.align.CONFIDENT_INLIERS` inliers, else the whole one —
+with its seconds: the stopping share's, plus the matching, RANSAC and ICP of the shares before
+it (``register`` describes each keypoint once). The table is per benchmark.
 """
 from __future__ import annotations
 
@@ -53,6 +53,7 @@ def pair_record(method, source, target, t_gt, keypoints):
             r = align.register(source, target, method=method, n_keypoints=k, progressive=False)
         rec[str(k)] = {"ok": r.ok, "right": registration.registered(*registration.rre_rte(
                            r.transform, t_gt)), "inliers": int(r.inliers),
+                       "matches": int(r.matches), "fitness": round(float(r.fitness), 4),
                        "confident": r.confident, "seconds": round(sum(r.seconds.values()), 1)}
         if "progressive" not in rec and (r.confident or k == keypoints):
             rec["progressive"] = {"stopped_at": k, "right": rec[str(k)]["right"],
