@@ -9,7 +9,7 @@ and printed. A registration that does not succeed (too few points, no mutual mat
 RANSAC consensus, ICP fitness below ``--min-fitness``) prints ``FAILED: <reason>`` and exits
 with status 3; one that succeeds with fewer than 40 RANSAC inliers (``align.CONFIDENT_INLIERS``)
 prints ``registered, unconfirmed``: on the benchmark's room scans wrong registrations had up to
-26.
+29.
 
     python -m experiments.register a.ply b.ply --method=fpfh --voxel=0.05 --out=runs/ab
     python -m experiments.register a.ply b.ply --method=lead@compass

@@ -41,13 +41,13 @@ DEFAULT_KEYPOINTS = 5000
 # agreement; only the newly drawn keypoints are described at each share. On the 27 redkitchen
 # pairs and LiDAR rescans of them, with every learned and hand-crafted method, no registration
 # from a quarter or half of the keypoints with that many inliers was wrong (wrong ones had at
-# most 14; docs/performance.md).
+# most 18; docs/performance.md, docs/usage.md).
 PROGRESSIVE_SHARES = (0.25, 0.5, 1.0)
 CONFIDENT_INLIERS = 40
 # Fewer inliers than that and the result says it is unconfirmed even from all keypoints:
-# wrong registrations that passed MIN_INLIERS and MIN_FITNESS there had up to 26 (LEAD-PN on
-# 3DLoMatch; 25 on the LiDAR rescans). At object scale inliers prove less: two of the bunny's
-# view pairs are wrong with 62 and 120.
+# wrong registrations that passed MIN_INLIERS and MIN_FITNESS there had up to 29 (LEAD-PN,
+# FPFH, SHOT and USC on the 27 pairs; 25 on the LiDAR rescans; docs/usage.md). At object scale
+# inliers prove less: two of the bunny's view pairs are wrong with 62 and 120.
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
