@@ -14,6 +14,7 @@ it (``register`` describes each keypoint once). The table is per benchmark.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import warnings
@@ -53,7 +54,8 @@ def pair_record(method, source, target, t_gt, keypoints):
             r = align.register(source, target, method=method, n_keypoints=k, progressive=False)
         rec[str(k)] = {"ok": r.ok, "right": registration.registered(*registration.rre_rte(
                            r.transform, t_gt)), "inliers": int(r.inliers),
-                       "matches": int(r.matches), "fitness": round(float(r.fitness), 4),
+                       "matches": int(r.matches),     # fitness: null without ICP (strict JSON)
+                       "fitness": round(r.fitness, 4) if math.isfinite(r.fitness) else None,
                        "confident": r.confident, "seconds": round(sum(r.seconds.values()), 1)}
         if "progressive" not in rec and (r.confident or k == keypoints):
             rec["progressive"] = {"stopped_at": k, "right": rec[str(k)]["right"],
