@@ -97,11 +97,14 @@ class Registration:
     def summary(self) -> str:
         t = "\n".join("  " + " ".join(f"{v: .6f}" for v in row) for row in self.transform)
         times = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items())
-        status = ("registered" if self.confident else
-                  f"registered, unconfirmed: {self.inliers} RANSAC inliers, fewer than the "
-                  f"{CONFIDENT_INLIERS} below which registrations of the redkitchen pairs were "
-                  f"sometimes wrong; check the result before using it"
-                  if self.ok else f"FAILED: {self.reason}")
+        if not self.ok:
+            status = f"FAILED: {self.reason}"
+        elif self.confident:
+            status = "registered"
+        else:
+            status = (f"registered, unconfirmed: {self.inliers} RANSAC inliers, fewer than the "
+                      f"{CONFIDENT_INLIERS} below which registrations of the redkitchen pairs "
+                      f"were sometimes wrong; check the result before using it")
         icp = (f"ICP fitness {self.fitness:.3f}, RMSE {self.rmse:.4g}"
                if np.isfinite(self.fitness) else "no ICP")
         return (f"{status}\np_target = T · p_source with T =\n{t}\n{self.method}: "
