@@ -78,7 +78,7 @@ def main(argv=None):
         print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "
               f"{data['radius']:.4g}" + (f", {minutes:g} min" if minutes else "")
               + (f", at most {args.steps} steps" if args.steps else ""))
-        path, last = training.adapt(bundle, args.data, args.steps, args.workdir,
+        path, _ = training.adapt(bundle, args.data, args.steps, args.workdir,
                                     args.learning_rate, data=data, minutes=minutes,
                                     patience=args.patience)
         if args.refit_whitening:
@@ -86,8 +86,8 @@ def main(argv=None):
                                             command=cli.command("experiments.adapt"))
         else:
             whitening_fit.keep_from(args.bundle, path)
-    print(f"adapted bundle in {path}: " + ", ".join(
-        f"{k}={v:.4g}" for k, v in last.items() if isinstance(v, float)))
+    # What the bundle holds, not the last step's metrics: early stopping keeps the best weights.
+    print(f"adapted bundle in {path}: {adaptation.outcome(path)}")
 
 
 if __name__ == "__main__":

@@ -178,6 +178,9 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path, capsy
     moved = _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle")
     # Two Adam steps of lr 1e-3 move each weight by at most ~2e-3: adapted, not re-initialised.
     assert 0 < moved < 5e-3
+    # Without early stopping the bundle holds the last step's weights, and says so.
+    assert re.search(r"adapted bundle in \S+: compass: 2 steps, validation loss [\d.]+ at the "
+                     r"last step: those weights used", capsys.readouterr().out)
     # Validated on enough patches that a few flipped frames do not decide when it stops.
     from sphere_jax import bundle
     from sphere_jax.training import adaptation
@@ -215,6 +218,9 @@ def test_an_adaptation_that_never_improves_ships_the_weights_it_started_from(sma
     adapted = api.load_bundle(path)
     assert adapted.config.train.best_step == 0 and adapted.config.train.steps_done >= 2
     assert "weights of step 0" in open(f"{path}/{model_card.CARD}").read()
+    from sphere_jax.training import adaptation
+    assert re.fullmatch(r"lead: \d+ steps, validation loss [\d.]+ at the start and never "
+                        r"lower: the starting weights kept", adaptation.outcome(path))
 
 
 def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path, capsys):

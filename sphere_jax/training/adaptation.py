@@ -120,16 +120,23 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
 
 def outcome(bundle_dir) -> str:
     """What an adaptation did, in one line, from its bundle's own log and config: the steps
-    run, the validation loss at the start and at the weights the bundle kept."""
+    run, the validation loss at the start and at the weights the bundle kept (the last
+    step's without early stopping)."""
     config = bundle.read_config(bundle_dir)
     steps, curves = model_card.validation_curve(
         model_card.read_metrics(os.path.join(str(bundle_dir), model_card.METRICS)))
     val, best = curves.get("val_loss") or [], config.train.get("best_step")
-    head = f"{config.model}: {config.train.get('steps_done')} steps"
+    done = config.train.get("steps_done")
+    head = f"{config.model}: {done} steps"
+    if best is None and val and steps[-1] == done:      # --patience=0: the last weights
+        return f"{head}, validation loss {val[-1]:.4g} at the last step: those weights used"
     if not val or steps[0] != 0 or best not in steps:
         return head
     start, kept = val[0], val[steps.index(best)]
     if best == 0:
         return (f"{head}, validation loss {start:.4g} at the start and never lower: the "
                 f"starting weights kept")
-    return f"{head}, validation loss {start:.4g} -> {kept:.4g} (step {best}): those weights used"
+    # The step count alone would hide that a long budget ended at an early best.
+    later = f", none better in the {done - best} steps after" if done and done > best else ""
+    return (f"{head}, validation loss {start:.4g} -> {kept:.4g} (step {best}{later}): those "
+            f"weights used")
