@@ -78,9 +78,9 @@ def main(argv=None):
         print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "
               f"{data['radius']:.4g}" + (f", {minutes:g} min" if minutes else "")
               + (f", at most {args.steps} steps" if args.steps else ""))
-        path, _ = training.adapt(bundle, args.data, args.steps, args.workdir,
-                                    args.learning_rate, data=data, minutes=minutes,
-                                    patience=args.patience)
+        path = training.adapt(bundle, args.data, args.steps, args.workdir,
+                              args.learning_rate, data=data, minutes=minutes,
+                              patience=args.patience)
         if args.refit_whitening:
             whitening_fit.fit_if_descriptor(path, args.compass,
                                             command=cli.command("experiments.adapt"))

@@ -284,9 +284,9 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     out, notes = dict(bundles), []
     for kind in kinds:
         trained = api.load_bundle(bundles[kind])
-        out[kind], _ = training.adapt(trained, ",".join(scans), None,
-                                      os.path.join(workdir, kind), minutes=minutes / len(kinds),
-                                      data=adaptation.data_at_scale(trained, voxel, radius))
+        out[kind] = training.adapt(trained, ",".join(scans), None,
+                                   os.path.join(workdir, kind), minutes=minutes / len(kinds),
+                                   data=adaptation.data_at_scale(trained, voxel, radius))
         whitening_fit.keep_from(bundles[kind], out[kind])
         notes.append(adaptation.outcome(out[kind]))
     return out, "; ".join(notes)

@@ -208,8 +208,8 @@ def test_an_adaptation_that_never_improves_ships_the_weights_it_started_from(sma
     config = tiny("lead", small_root, steps=1)
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
     trained = api.load_bundle(tmp_path / "src" / "bundle")
-    path, _ = training.adapt(trained, config.data.root, 6, str(tmp_path / "adapted"),
-                             learning_rate=1.0, progress=False, patience=2)
+    path = training.adapt(trained, config.data.root, 6, str(tmp_path / "adapted"),
+                          learning_rate=1.0, progress=False, patience=2)
     log = [json.loads(ln) for ln in (tmp_path / "adapted" / "metrics.jsonl").read_text()
            .splitlines()]
     assert log[0]["step"] == 0 and "val_loss" in log[0] and "loss" not in log[0]
@@ -255,8 +255,8 @@ def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path
     def no_ground_truth(*_):
         raise AssertionError("adaptation read ground-truth poses")
     monkeypatch.setattr(poses, "scene_poses", no_ground_truth)
-    path, _ = training.adapt(trained, config.data.root, 1, str(tmp_path / "adapted"),
-                             progress=False)
+    path = training.adapt(trained, config.data.root, 1, str(tmp_path / "adapted"),
+                          progress=False)
     assert api.load_bundle(path).config.data.copy_draw == "support"
     with pytest.raises(checks.ConfigError, match="ground-truth poses"):
         training.adapt(trained, config.data.root, 1, str(tmp_path / "again"), progress=False,

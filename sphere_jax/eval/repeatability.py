@@ -131,11 +131,10 @@ def adapted_bundles(config, bundles, names, workdir, progress):
             trained = api.load_bundle(bundles[kind])
             folder = os.path.join(workdir, f"adapted_{kind}")
             _set_aside_if_stale(folder, trained)
-            out[kind], _ = training.adapt(trained, scene_lib.data_root(config),
-                                          config.adapt_steps, folder,
-                                          progress=progress,
-                                          data=adaptation.data_at_scale(
-                                              trained, config.data.voxel, config.data.radius))
+            out[kind] = training.adapt(trained, scene_lib.data_root(config),
+                                       config.adapt_steps, folder, progress=progress,
+                                       data=adaptation.data_at_scale(
+                                           trained, config.data.voxel, config.data.radius))
     return out
 
 

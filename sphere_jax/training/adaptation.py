@@ -65,7 +65,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     for scans of another scale (voxel, radius, keypoint_leaf). It stops early once the
     validation loss (:data:`EVAL_PATCHES` held-back patches of the same scans) has not improved
     for ``patience`` evaluations (0: never) nor for as many as it took to reach its best.
-    Returns ``(path, last metrics)``."""
+    Returns the adapted bundle's path (:func:`outcome` says what it holds)."""
     if trained.kind not in adaptable_kinds():
         raise checks.ConfigError(f"bundle {trained.kind!r} was trained with labels; adaptation "
                                  f"is for {', '.join(adaptable_kinds())} bundles")
@@ -113,9 +113,8 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
                                                steps))
     if learning_rate:
         config.train.learning_rate = float(learning_rate)
-    _, last = loop.train_and_evaluate(config, workdir, progress,
-                                      init_variables=trained.variables)
-    return os.path.join(workdir, "bundle"), last
+    loop.train_and_evaluate(config, workdir, progress, init_variables=trained.variables)
+    return os.path.join(workdir, "bundle")
 
 
 def outcome(bundle_dir) -> str:
