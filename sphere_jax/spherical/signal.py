@@ -30,6 +30,11 @@ from sphere_jax.spherical import so3
 
 # A point closer to the keypoint than this fraction of the radius has no usable direction.
 _MIN_RADIUS_FRACTION = 1e-6
+# Patches per step when a batch is computed: 16 patches' intermediates (1024 points × 2 rows ×
+# 2B α tents each) stay in the cache, a chunk of 256 streams 67 MB through memory several
+# times; 16 measured fastest among 1, 4, 16, 64 on the 2-core machine (B = 16: 0.35 -> 0.19 ms
+# per patch), with the same signals bit for bit.
+PATCHES_PER_STEP = 16
 
 
 def _tent_integrals(centres, density, lo, hi, n=20001):
@@ -112,12 +117,13 @@ def patch_signals(patches_PxNx3, radius, b: int, n_shells: int = 4):
     _check_points(patches_PxNx3, "patches_PxNx3", batched=True)
     _check_radius(radius)
     return _batched_signal(jnp.asarray(patches_PxNx3, jnp.float32),
-                           jnp.asarray(radius, jnp.float32), b, n_shells)
+                           jnp.asarray(radius, jnp.float32), b, n_shells, PATCHES_PER_STEP)
 
 
-@functools.partial(jax.jit, static_argnums=(2, 3))
-def _batched_signal(patches, radius, b, n_shells):
-    return jax.vmap(patch_signal, (0, None, None, None))(patches, radius, b, n_shells)
+@functools.partial(jax.jit, static_argnums=(2, 3, 4))
+def _batched_signal(patches, radius, b, n_shells, per_step):
+    return jax.lax.map(lambda p: patch_signal(p, radius, b, n_shells), patches,
+                       batch_size=per_step)
 
 
 def sample_patch(key, points_Mx3, center_3, radius, n_points: int):

@@ -77,9 +77,12 @@ def test_sample_patch_excludes_keypoint_and_stays_in_radius():
 
 def test_batched_signals_match_single_and_are_differentiable():
     rng = np.random.default_rng(4)
-    patches = np.stack([blob_patch(rng, 300) for _ in range(3)])
+    # One step of PATCHES_PER_STEP patches and a remainder.
+    n = signal.PATCHES_PER_STEP + 3
+    patches = np.stack([blob_patch(rng, 300) for _ in range(n)])
     batch = signal.patch_signals(patches, 1.0, 6)
-    np.testing.assert_allclose(batch[1], signal.patch_signal(patches[1], 1.0, 6), atol=1e-5)
+    single = np.stack([signal.patch_signal(p, 1.0, 6) for p in patches])
+    np.testing.assert_allclose(batch, single, rtol=1e-5, atol=1e-5)
     g = jax.grad(lambda p: jnp.sum(signal.patch_signal(p, 1.0, 6) ** 2))(patches[0])
     assert np.all(np.isfinite(g))
 
