@@ -15,8 +15,8 @@ def test_stages_chain_to_the_networks_output(kind):
     x = (rng.normal(size=(4, bundle.config.data.n_points, 3)) * 0.4).astype(np.float32)
     frames = np.broadcast_to(np.eye(3, dtype=np.float32), (4, 3, 3))
     parts, final = stages.stages(bundle, x, frames)
-    whole = {"compass": lambda: bundle._orient_fn(x), "sound": lambda: bundle._describe_fn(x),
-             "lead": lambda: bundle._describe_fn(x, frames)}[kind]()
+    whole = stages.whole_network(bundle, x, frames)
+    whole = whole.fn(*whole.args)
     assert np.max(np.abs(np.asarray(final) - np.asarray(whole))) < 1e-4
     assert [p.name for p in parts][:2] == ["signal", "S2 analysis"]
     m = bundle.model

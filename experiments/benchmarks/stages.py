@@ -137,6 +137,15 @@ def stages(bundle, patches, frames=None):
     return out, step("rotation to the frame", canonical_descriptors, maps, frames)
 
 
+def whole_network(bundle, patches, frames):
+    """The bundle's jitted network in one call, as a :class:`Stage` (a Compass bundle has no
+    describe function, the descriptors none to orient)."""
+    if bundle.kind == "compass":
+        return Stage("whole", bundle._orient_fn, (patches,))
+    args = (patches, frames) if bundle.kind == "lead" else (patches,)
+    return Stage("whole", bundle._describe_fn, args)
+
+
 def run(repeats=5, only=None, **_):
     from experiments.benchmarks.describe import fragments, unrolled_gflop
     from experiments.benchmarks.layers import matmul_gflops
@@ -153,9 +162,7 @@ def run(repeats=5, only=None, **_):
         x = np.asarray(stream.make(0, min(CHUNK, stream.n))[0], np.float32)
         frames = np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3))
         parts, final = stages(bundle, x, frames)
-        whole = Stage("whole", *{"compass": (bundle._orient_fn, (x,)),
-                                 "lead": (bundle._describe_fn, (x, frames)),
-                                 "sound": (bundle._describe_fn, (x,))}[kind])
+        whole = whole_network(bundle, x, frames)
         expected = jax.block_until_ready(whole.fn(*whole.args))
         err = float(np.max(np.abs(np.asarray(final) - np.asarray(expected))))
         if err > 1e-4:
