@@ -60,6 +60,6 @@ def inference_codes(variables, points, n_layers: int):
             h = jax.nn.relu(h @ k + b)
         return jax.nn.relu(jnp.max(h @ kernel, axis=0) + bias)
 
-    lead = points.shape[:-2]
     flat = points.reshape((-1,) + points.shape[-2:])
-    return jax.lax.map(one_patch, flat, batch_size=PATCHES_PER_STEP).reshape(lead + (kernel.shape[1],))
+    codes = jax.lax.map(one_patch, flat, batch_size=PATCHES_PER_STEP)
+    return codes.reshape(points.shape[:-2] + codes.shape[-1:])
