@@ -22,6 +22,8 @@ def test_blocked_nearest_matches_the_full_distance_matrix():
     q, b = rng.normal(size=(300, 32)), rng.normal(size=(200, 32))
     full = np.argmin(np.linalg.norm(q[:, None] - b[None], axis=2), axis=1)
     assert np.array_equal(matching.nearest(q, b, rows=7), full)
+    # Exact ties (a base set twice) go to the first copy, as with the distances themselves.
+    assert np.array_equal(matching.nearest(q, np.concatenate([b, b]), rows=7), full)
 
 
 def test_undescribed_rows_never_match_where_a_zero_row_would_take_them():
