@@ -33,6 +33,9 @@ class PointNetEncoder(nn.Module):
 def folded_layers(variables, n_layers: int):
     """``[(kernel [C_in, C_out], bias [C_out])]``: each Dense with the inference batch norm
     after it folded in (``BatchNorm(Dense(x)) = x · kernel + bias``)."""
+    if "batch_stats" not in variables:
+        raise ValueError("PointNetEncoder at inference needs the 'batch_stats' collection (its "
+                         f"batch norms' running moments); got only {sorted(variables)}")
     params, stats = variables["params"], variables["batch_stats"]
     layers = []
     for i in range(n_layers):

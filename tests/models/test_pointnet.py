@@ -2,6 +2,7 @@
 of the layer-by-layer definition: Dense, batch norm with the running moments, ReLU, max pool."""
 import jax
 import numpy as np
+import pytest
 
 from sphere_jax.models import pointnet
 from tests import reference
@@ -40,3 +41,11 @@ def test_inference_codes_equal_the_layer_by_layer_definition():
     err = np.abs(got - want).max() / np.abs(want).max()
     assert err < 1e-5, err
     assert (want > 0).mean() > 0.3           # ReLU does not zero the codes wholesale
+
+
+def test_inference_without_running_moments_is_refused_by_name():
+    model = pointnet.PointNetEncoder(features=(8, 16))
+    points = np.zeros((2, 10, 3), np.float32)
+    variables = reference.init(model, points, train=False)
+    with pytest.raises(ValueError, match="batch_stats"):
+        model.apply({"params": variables["params"]}, points, train=False)
