@@ -138,11 +138,12 @@ def stages(bundle, patches, frames=None):
 
 
 def whole_network(bundle, patches, frames):
-    """The bundle's jitted network in one call, as a :class:`Stage` (a Compass bundle has no
-    describe function, the descriptors none to orient)."""
-    if bundle.kind == "compass":
+    """The bundle's jitted network in one call, as a :class:`Stage`: what its spec has — an
+    orienting network (Compass) has no describe function, and only a descriptor whose spec
+    says ``describe_frames`` (LEAD) takes ``frames``."""
+    if bundle.spec.describe is None:
         return Stage("whole", bundle._orient_fn, (patches,))
-    args = (patches, frames) if bundle.kind == "lead" else (patches,)
+    args = (patches, frames) if bundle.spec.describe_frames else (patches,)
     return Stage("whole", bundle._describe_fn, args)
 
 
