@@ -352,8 +352,13 @@ def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
     tables = tuple(jnp.asarray(t, jnp.float32) for t in _block_tables(b, l_in, lmax_out))
     n = h.n_patches
     size = _signals_per_block(n, c, b, block_floats or BLOCK_FLOATS)
-    scale = jnp.tile(jnp.asarray(scale_C, jnp.float32), n)
-    shift = jnp.tile(jnp.asarray(shift_C, jnp.float32), n)
+    # A block of whole patches takes the same per-signal scale and shift as every other block:
+    # one array for all, read whole. A slice at the block's offset (or a tile inside the loop)
+    # is fused into the grid's activation and makes that pass 3-4x slower (2.1 against 0.57 ms
+    # for 80 signals at B = 12 on one core).
+    whole = size % c == 0
+    scale, shift = (jnp.tile(jnp.asarray(t, jnp.float32), size // c if whole else n)
+                    for t in (scale_C, shift_C))
     operands = h.operands()
     k = len(operands)
 
@@ -369,7 +374,8 @@ def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
         return fb.reshape(fb.shape[:1] + (-1,) + fb.shape[3:])[:, :lmax_out]
 
     def windows(start, size):
-        return h.windows(start, size) + ((start, size), (start, size))
+        channels = (0, size) if whole else (start, size)
+        return h.windows(start, size) + (channels, channels)
 
     out_shape = (2 * lmax_out - 1, lmax_out, lmax_out, 2, n * c)
     coeffs = _blocked_map(block, operands + (scale, shift), windows, n * c // size, out_shape)
