@@ -28,7 +28,7 @@ from sphere_jax.data import patches as patch_lib
 from sphere_jax.data.supports import (MIN_SUPPORT, StreamChain, SupportStream,
                                       extract_unit_patches)
 from sphere_jax.features import whitening as whitening_lib
-from sphere_jax.parallel import DEFAULT_CHUNK, run_chunked, stream_chunked
+from sphere_jax.parallel import DEFAULT_CHUNK, in_slices, run_chunked, stream_chunked
 from sphere_jax.models import flare
 
 FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
@@ -215,8 +215,10 @@ class Bundle:
         key = id(lrf)
         if key not in self._framed:                   # the bundle is kept: its id stays its own
             describe, orient = self.spec.describe, lrf.spec.orient
-            self._framed[key] = (lrf, jax.jit(lambda p: describe(
-                self.model, self.variables, p, orient(lrf.model, lrf.variables, p))))
+            size = min(filter(None, (self.spec.infer_slice, lrf.spec.infer_slice)),
+                       default=None)
+            self._framed[key] = (lrf, jax.jit(in_slices(lambda p: describe(
+                self.model, self.variables, p, orient(lrf.model, lrf.variables, p)), size)))
         return self._framed[key][1]
 
     def _whitening(self, whiten, framed: bool):
@@ -238,15 +240,16 @@ class Bundle:
         self._framed = {}
         spec = self.spec
         if spec.orient is not None:
-            self._orient_fn = jax.jit(lambda p: spec.orient(self.model, self.variables, p))
+            self._orient_fn = jax.jit(in_slices(
+                lambda p: spec.orient(self.model, self.variables, p), spec.infer_slice))
         if spec.describe is not None and spec.describe_frames:
             def describe(p, frames=None):
                 frames = FLARE_BATCH(p) if frames is None else frames
                 return spec.describe(self.model, self.variables, p, frames)
-            self._describe_fn = jax.jit(describe)
+            self._describe_fn = jax.jit(in_slices(describe, spec.infer_slice))
         elif spec.describe is not None:
-            self._describe_fn = jax.jit(lambda p: spec.describe(self.model, self.variables, p,
-                                                                None))
+            self._describe_fn = jax.jit(in_slices(
+                lambda p: spec.describe(self.model, self.variables, p, None), spec.infer_slice))
 
 
 ON_INVALID = ("raise", "mask")

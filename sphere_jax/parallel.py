@@ -202,6 +202,26 @@ def shard_batch(batch: dict, mesh: Mesh) -> dict:
     return {k: put(v) for k, v in batch.items()}
 
 
+def in_slices(fn, size: int | None):
+    """``fn`` over the rows of its arguments (arrays ``[K, ...]`` or None) in slices of ``size``
+    rows one after the other inside the traced call (``lax.map``), results concatenated;
+    ``fn`` alone when ``size`` is None or K not a larger multiple of it. For a jitted network
+    over a chunk of patches: the same values with one slice's intermediates at a time, which
+    stay in the cache and, allocated once per call, are page-faulted once per call."""
+    if size is None:
+        return fn
+
+    def sliced(*args):
+        k = next(a.shape[0] for a in args if a is not None)
+        if k <= size or k % size:
+            return fn(*args)
+        step = size
+        split = lambda a: a.reshape((k // step, step) + a.shape[1:])
+        out = jax.lax.map(lambda a: fn(*a), jax.tree.map(split, args))
+        return jax.tree.map(lambda o: o.reshape((k,) + o.shape[2:]), out)
+    return sliced
+
+
 def run_chunked(fn, x, chunk=None, workers=None):
     """``fn`` over the rows of ``x`` in chunks (:func:`stream_chunked`)."""
     x = np.asarray(x)

@@ -3,6 +3,8 @@
 import json
 import os
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -62,6 +64,30 @@ def test_run_chunked_order_padding_and_workers():
         parallel.run_chunked(fn, x, 4, workers=0)
     with pytest.raises(ValueError, match="chunk must be a positive integer; got 0"):
         parallel.run_chunked(fn, x, 0)
+
+
+def test_in_slices_equals_the_whole_call():
+    """Slices of 4 rows inside one traced call: the same rows, a pytree and a None argument
+    carried through, and the whole call where the rows do not split into slices."""
+    seen = []
+
+    def fn(x, frames=None):
+        seen.append(x.shape[0])
+        rows = jnp.tanh(x @ jnp.ones((3, 2)))
+        return {"rows": rows, "sum": x.sum(1) + (0 if frames is None else frames.sum((1, 2)))}
+
+    x = jnp.asarray(np.random.default_rng(0).normal(size=(12, 3)), jnp.float32)
+    frames = jnp.ones((12, 3, 3))
+    for args in ((x,), (x, None), (x, frames)):
+        seen.clear()
+        got, want = jax.jit(parallel.in_slices(fn, 4))(*args), fn(*args)
+        assert seen[0] == 4
+        for key in want:
+            np.testing.assert_allclose(got[key], want[key], rtol=1e-6)
+    for size, k in ((None, 12), (5, 12), (12, 12), (16, 12)):
+        seen.clear()
+        jax.jit(parallel.in_slices(fn, size))(x[:k])
+        assert seen == [k]
 
 
 @pytest.fixture(scope="module")
