@@ -19,6 +19,7 @@ from __future__ import annotations
 import atexit
 import collections
 import concurrent.futures
+import functools
 import os
 import sys
 import threading
@@ -211,6 +212,7 @@ def in_slices(fn, size: int | None):
     if size is None:
         return fn
 
+    @functools.wraps(fn)             # inspect.unwrap reaches ``fn`` (the flop count does)
     def sliced(*args):
         k = next(a.shape[0] for a in args if a is not None)
         if k <= size or k % size:

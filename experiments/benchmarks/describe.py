@@ -107,17 +107,19 @@ def fragments(keypoints):
 def unrolled_gflop(jitted, *args):
     """XLA's flop count (GFLOP) of the jitted ``jitted`` on ``args``.
 
-    XLA's cost analysis counts a loop's body once, and the fused layers loop over cache-sized
+    XLA's cost analysis counts a loop's body once, and the networks run a chunk in slices of
+    patches (:func:`sphere_jax.parallel.in_slices`), the fused layers loop over cache-sized
     blocks (:func:`sphere_jax.spherical.fused.pointwise`), PointNet and the patch signal over
     patches (``PATCHES_PER_STEP`` of :mod:`sphere_jax.models.pointnet` and
-    :mod:`sphere_jax.spherical.signal`): the function is therefore lowered (never run) with one
-    block for the whole input — the same arithmetic, without the loop."""
+    :mod:`sphere_jax.spherical.signal`): the function is therefore lowered (never run) without
+    the slices and with one block for the whole input — the same arithmetic, without loops."""
+    import inspect
     import jax
     from unittest import mock
     from sphere_jax.models import pointnet
     from sphere_jax.spherical import fused, signal
     # A new function object: jit would otherwise reuse the trace of the blocked network.
-    unrolled = jax.jit(lambda *a, f=jitted.__wrapped__: f(*a))
+    unrolled = jax.jit(lambda *a, f=inspect.unwrap(jitted): f(*a))
     with mock.patch.object(fused, "BLOCK_FLOATS", 2 ** 62), \
             mock.patch.object(pointnet, "PATCHES_PER_STEP", 2 ** 62), \
             mock.patch.object(signal, "PATCHES_PER_STEP", 2 ** 62):
