@@ -38,3 +38,13 @@ def test_flops_count_every_block_of_the_fused_layers():
     per_patch = describe._flops("lead", small), describe._flops("lead", large)
     assert abs(per_patch[0] - per_patch[1]) < 0.01 * per_patch[1]
     assert per_patch[1] > 0.15           # the layers' GEMMs alone (docs/performance.md)
+
+
+def test_flops_of_a_jitted_vmap_count_the_whole_batch():
+    # The stages benchmark counts jit(vmap(per-patch function)); unwrapping past the vmap
+    # would count one patch, or fail on the unbatched shapes.
+    import jax
+    m = np.random.default_rng(2).normal(size=(16, 16)).astype(np.float32)
+    x = np.ones((8, 16), np.float32)
+    gflop = describe.unrolled_gflop(jax.jit(jax.vmap(lambda v: m @ v)), x)
+    assert abs(gflop * 1e9 - 2 * 8 * 16 * 16) <= 8 * 16      # XLA may count the adds apart

@@ -113,13 +113,13 @@ def unrolled_gflop(jitted, *args):
     patches (``PATCHES_PER_STEP`` of :mod:`sphere_jax.models.pointnet` and
     :mod:`sphere_jax.spherical.signal`): the function is therefore lowered (never run) without
     the slices and with one block for the whole input — the same arithmetic, without loops."""
-    import inspect
     import jax
     from unittest import mock
     from sphere_jax.models import pointnet
     from sphere_jax.spherical import fused, signal
     # A new function object: jit would otherwise reuse the trace of the blocked network.
-    unrolled = jax.jit(lambda *a, f=inspect.unwrap(jitted): f(*a))
+    fn = jitted.__wrapped__
+    unrolled = jax.jit(lambda *a, f=getattr(fn, "whole", fn): f(*a))
     with mock.patch.object(fused, "BLOCK_FLOATS", 2 ** 62), \
             mock.patch.object(pointnet, "PATCHES_PER_STEP", 2 ** 62), \
             mock.patch.object(signal, "PATCHES_PER_STEP", 2 ** 62):
