@@ -273,11 +273,16 @@ def _pointwise_block(h_HxSxMxNxLxX, scale_X, shift_X, tables, relu):
     y = _bmm(d_syn, h_HxSxMxNxLxX, 4, 1)                              # β
     y = _bmm(a_syn, _fold(y, b, 2), 2, 2)                              # α
     z = _bmm(g_syn, y, 3, 2)                                           # γ of each parity
-    grid = _sum_diff(z[:, 0], z[:, 1], 1)                              # γ halves t = 0, 1
-    grid = grid * scale_X + shift_X
-    if relu:
-        grid = jax.nn.relu(grid)
-    z = _sum_diff(grid[:, 0], grid[:, 1], 1)                           # parities h = 0, 1
+
+    def half(t):                                                       # γ half t = 0 or 1
+        t = t * scale_X + shift_X
+        return jax.nn.relu(t) if relu else t
+
+    # Both butterflies and the activation in one expression, so that XLA makes them one pass
+    # over the grid: stacking the γ halves in between split it in two (Compass's B = 12 step
+    # on 256 patches, one core: 31.8 -> 15.7 ms of about 210).
+    grid_0, grid_1 = half(z[:, 0] + z[:, 1]), half(z[:, 0] - z[:, 1])
+    z = _sum_diff(grid_0, grid_1, 1)                                   # parities h = 0, 1
     y = _bmm(g_ana, z, 3, 1)                                           # γ
     y = _bmm(a_ana, y, 2, 2)                                           # α
     y = _unfold(y, (d_ana.shape[2] + 1) // 2, 2)                       # [h, s, m, n', j, x]
