@@ -204,19 +204,21 @@ def shard_batch(batch: dict, mesh: Mesh) -> dict:
 
 def in_slices(fn, size: int | None):
     """``fn`` over the rows of its arguments (arrays ``[K, ...]`` or None) in slices of ``size``
-    rows one after the other inside the traced call (``lax.map``), results concatenated;
-    ``fn`` alone when ``size`` is None or K not a larger multiple of it. For a jitted network
-    over a chunk of patches: the same values with one slice's intermediates at a time, which
-    stay in the cache and, allocated once per call, are page-faulted once per call."""
+    rows one after the other inside the traced call (``lax.map``), results concatenated. For a
+    jitted network over a chunk of patches on one CPU: the same values with one slice's
+    intermediates at a time, which stay in the cache and, allocated once per call, are
+    page-faulted once per call. ``fn`` alone when ``size`` is None, K is not a larger multiple
+    of it, or the chunk runs on an accelerator or across several devices (where one step over
+    the whole chunk is what keeps them busy, and a loop over a sharded axis would not split)."""
     if size is None:
         return fn
 
     def sliced(*args):
         k = next(a.shape[0] for a in args if a is not None)
-        if k <= size or k % size:
+        if k <= size or k % size or jax.default_backend() != "cpu" \
+                or jax.local_device_count() > 1:
             return fn(*args)
-        step = size
-        split = lambda a: a.reshape((k // step, step) + a.shape[1:])
+        split = lambda a: a.reshape((k // size, size) + a.shape[1:])
         out = jax.lax.map(lambda a: fn(*a), jax.tree.map(split, args))
         return jax.tree.map(lambda o: o.reshape((k,) + o.shape[2:]), out)
     sliced.whole = fn                # for XLA's flop count, which sees one slice of a loop

@@ -66,9 +66,10 @@ def test_run_chunked_order_padding_and_workers():
         parallel.run_chunked(fn, x, 0)
 
 
-def test_in_slices_equals_the_whole_call():
+def test_in_slices_equals_the_whole_call(monkeypatch):
     """Slices of 4 rows inside one traced call: the same rows, a pytree and a None argument
-    carried through, and the whole call where the rows do not split into slices."""
+    carried through, and the whole call where the rows do not split into slices or the call
+    runs on an accelerator or several devices."""
     seen = []
 
     def fn(x, frames=None):
@@ -88,6 +89,12 @@ def test_in_slices_equals_the_whole_call():
         seen.clear()
         jax.jit(parallel.in_slices(fn, size))(x[:k])
         assert seen == [k]
+    for name, value in (("default_backend", lambda: "gpu"), ("local_device_count", lambda: 2)):
+        with monkeypatch.context() as m:
+            m.setattr(jax, name, value)
+            seen.clear()
+            jax.jit(parallel.in_slices(fn, 4))(x)
+            assert seen == [12], name
 
 
 @pytest.fixture(scope="module")
