@@ -96,8 +96,10 @@ def patch_signal(patch_Nx3, radius, b: int, n_shells: int = 4):
 
     # Circular α tent on each of the point's two rows: [N, 2(row), 2B(α)].
     grid_alpha = jnp.asarray(so3.grid_alpha(b), jnp.float32)
-    diff = jnp.mod(alpha[:, None] - grid_alpha[None, :], 2 * np.pi)
-    dist = jnp.minimum(diff, 2 * np.pi - diff)
+    diff = alpha[:, None] - grid_alpha[None, :]
+    # Distance to the nearest whole turn by rounding: jnp.mod's float remainder took a third
+    # of the signal's time (256 patches at B = 12, 2 cores: 38 -> 27 ms).
+    dist = jnp.abs(diff - (2 * np.pi) * jnp.round(diff * (0.5 / np.pi)))
     h = jnp.asarray(half_width)[row_idx]                               # [N, 2]
     alpha_w = jnp.maximum(0.0, 1.0 - dist[:, None, :] / h[..., None])
 
