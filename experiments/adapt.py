@@ -45,15 +45,15 @@ def main(argv=None):
     parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bundle", required=True, help="a bundle folder or a shipped kind")
     parser.add_argument("--data", required=True, help="scan folders or files, comma-separated")
-    parser.add_argument("--minutes", type=float, default=None,
+    parser.add_argument("--minutes", type=cli.positive_number, default=None,
                         help="wall-time budget (default 10 when --steps is not given)")
-    parser.add_argument("--steps", type=int, default=None)
+    parser.add_argument("--steps", type=cli.positive_int, default=None)
     parser.add_argument("--voxel", type=cli.scale, default="auto")
     parser.add_argument("--radius", type=cli.scale, default="auto")
-    parser.add_argument("--patience", type=int, default=adaptation.PATIENCE,
+    parser.add_argument("--patience", type=cli.non_negative_int, default=adaptation.PATIENCE,
                         help="evaluations without improvement before stopping, at least as "
                              "many as the best took (0: never stop early)")
-    parser.add_argument("--learning_rate", type=float, default=None,
+    parser.add_argument("--learning_rate", type=cli.positive_number, default=None,
                         help="the rate after a short warm-up (default: a tenth of the "
                              "bundle's training rate)")
     parser.add_argument("--refit_whitening", action="store_true",

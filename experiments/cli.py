@@ -71,17 +71,27 @@ def refusals(arguments=False):
         fail(e, USAGE if arguments else 1)
 
 
-def scale(text):
-    """argparse type of ``--voxel`` and ``--radius``: ``auto`` or a positive number."""
-    if text == "auto":
-        return text
-    try:
-        value = float(text)
-    except ValueError:
-        value = None
-    if value is None or not (value > 0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive number, got {text!r}")
-    return value
+def _number(parse, ok, what):
+    """An argparse type: ``parse(text)`` when ``ok`` of it, else the flag's one-line refusal
+    (``argument --keypoints: expected a positive integer, got '-3'``)."""
+    def typed(text):
+        try:
+            value = parse(text)
+        except ValueError:
+            value = None
+        if value is None or not ok(value):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+    return typed
+
+
+positive_int = _number(int, lambda v: v > 0, "a positive integer")
+non_negative_int = _number(int, lambda v: v >= 0, "a non-negative integer")
+positive_number = _number(float, lambda v: 0 < v < float("inf"), "a positive number")
+fraction = _number(float, lambda v: 0 <= v <= 1, "a number in [0, 1]")
+# ``--voxel`` and ``--radius``: ``auto`` or a positive number.
+scale = _number(lambda t: t if t == "auto" else float(t),
+                lambda v: v == "auto" or 0 < v < float("inf"), "'auto' or a positive number")
 
 
 class ArgumentParser(argparse.ArgumentParser):

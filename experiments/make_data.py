@@ -22,22 +22,31 @@ import time
 
 from experiments import cli
 
+PACK_VOXEL = 0.02              # m: the voxel of the 'mid' configs, which train on packs
+
 
 def main(argv=None):
     parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=None,
                         help="output folder (default data: the package's cache folder)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--scenes", type=int, default=2)
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
+    parser.add_argument("--scenes", type=cli.positive_int, default=None,
+                        help="synthetic scenes of the default data")
     parser.add_argument("--pack", default=None,
                         help="a data.root list to pack (voxelised scans) instead")
-    parser.add_argument("--voxel", type=float, default=0.02, help="the pack's voxel (m)")
+    parser.add_argument("--voxel", type=cli.positive_number, default=None,
+                        help=f"the pack's voxel (m, default {PACK_VOXEL})")
     parser.add_argument("--lidar", default=None,
                         help="a 3DMatch scene folder to rescan with a spinning LiDAR instead")
     args = parser.parse_args(argv)
     t0 = time.time()
     if args.pack is not None and args.lidar is not None:
         parser.error("--pack and --lidar are two jobs: give one")
+    # An option of another job would be ignored without a word.
+    if args.voxel is not None and args.pack is None:
+        parser.error("--voxel is the pack's voxel: give it with --pack")
+    if args.scenes is not None and (args.pack is not None or args.lidar is not None):
+        parser.error("--scenes is for the default data, not --pack or --lidar")
     if args.lidar is not None:
         from sphere_jax.data.generators import lidar
         if not args.out:
@@ -52,13 +61,14 @@ def main(argv=None):
         with cli.refusals(arguments=True):
             pipeline.scan_paths(args.pack)          # every entry exists, before any work
         with cli.refusals():
-            folders = pipeline.pack_scans(args.pack, args.voxel, args.out)
+            folders = pipeline.pack_scans(args.pack, args.voxel or PACK_VOXEL, args.out)
         print(json.dumps(folders, indent=1))
         print("data.root=" + ",".join(folders))
     else:
         from sphere_jax.data.generators import synthetic
         out = args.out or synthetic.default_data_dir(args.seed)
-        summary = synthetic.make_all(out, args.seed, n_scenes=args.scenes)
+        scenes = {} if args.scenes is None else {"n_scenes": args.scenes}
+        summary = synthetic.make_all(out, args.seed, **scenes)
         summary["washington"] = synthetic.make_default_objects(out, args.seed)
         print(json.dumps(summary, indent=1))
         args.out = out

@@ -40,22 +40,22 @@ def main(argv=None):
                              "lead_compass)")
     parser.add_argument("--voxel", type=cli.scale, default="auto")
     parser.add_argument("--radius", type=cli.scale, default="auto")
-    parser.add_argument("--keypoints", type=int, default=align.DEFAULT_KEYPOINTS,
+    parser.add_argument("--keypoints", type=cli.positive_int, default=align.DEFAULT_KEYPOINTS,
                         help="random keypoints per cloud (fewer: faster, lower recall); a "
                              "quarter are described first, then half, then all, until they "
                              "register with confidence")
     parser.add_argument("--no-progressive", action="store_true",
                         help="describe all the keypoints at once")
     parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")
-    parser.add_argument("--adapt", type=float, default=None, metavar="MINUTES",
+    parser.add_argument("--adapt", type=cli.positive_number, default=None, metavar="MINUTES",
                         help="adapt the method's learned frames (Compass, SOUND) to these two "
                              "scans first, without labels (kept in OUT/adapted with --out)")
     parser.add_argument("--no-icp", action="store_true")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")
-    parser.add_argument("--min-inliers", type=int, default=align.MIN_INLIERS,
+    parser.add_argument("--min-inliers", type=cli.non_negative_int, default=align.MIN_INLIERS,
                         help="fewer RANSAC inliers is a failed registration")
-    parser.add_argument("--min-fitness", type=float, default=align.MIN_FITNESS,
+    parser.add_argument("--min-fitness", type=cli.fraction, default=align.MIN_FITNESS,
                         help="a lower ICP fitness is a failed registration")
     args = parser.parse_args(argv)
     from sphere_jax import workdirs

@@ -23,8 +23,8 @@ def main(argv=None):
     parser.add_argument("--compass", default=None,
                         help="LEAD only: the Compass bundle whose frames the 'compass' "
                              "whitening is fitted in (default: the shipped one)")
-    parser.add_argument("--scans", type=int, default=whitening_fit.SCANS)
-    parser.add_argument("--keypoints", type=int, default=whitening_fit.KEYPOINTS,
+    parser.add_argument("--scans", type=cli.positive_int, default=whitening_fit.SCANS)
+    parser.add_argument("--keypoints", type=cli.positive_int, default=whitening_fit.KEYPOINTS,
                         help="random keypoints per scan")
     args = parser.parse_args(argv)
     with cli.refusals(arguments=True):
