@@ -196,6 +196,35 @@ def s2_spectral_product(f, zb):
     return jnp.einsum("mlsxc,lscrnd->mnlrxd", _full_m(f, lmax), zb)
 
 
+def s2_product_moments(f, zb):
+    """Haar mean and mean square ``([N·D], [N·D])`` of the SO(3) signals whose spectra are
+    :func:`s2_spectral_product` ``(f, zb)`` (``f``: ``[L(m≥0), L(l), 2, N, C]``; ``zb``:
+    ``[L, 2, C, 2, L, D]``), without forming it: what :func:`transforms.so3_moments` gives of
+    the product, to float round-off.
+
+    Per degree ``h_{mn} = Σ_c f_{mc} Z_{nc}``, so ``Σ_{mn} w_n |h_{mn}|² = Σ_{cc'} F_{cc'}
+    G_{cc'}`` with the C × C Gram matrices ``F = Σ_m f_{mc} conj f_{mc'}`` (per patch) and
+    ``G = Σ_n w_n Z_{nc} conj Z_{nc'}`` (per output channel): a few thousand products per
+    patch where the product itself is ``2(2L-1)L²·D`` floats to write and read back (batch
+    norm's statistics in training)."""
+    lmax = f.shape[0]
+    full = _full_m(f, lmax)                                            # [m, l, s, N, C]
+    fr, fi = full[:, :, 0], full[:, :, 1]
+    gram_f = lambda a, b: jnp.einsum("mlxc,mlxe->lxce", a, b)
+    f_re, f_im = gram_f(fr, fr) + gram_f(fi, fi), gram_f(fi, fr) - gram_f(fr, fi)
+    zr, zi = zb[:, 0, :, 0], zb[:, 0, :, 1]                           # Z: [l, C, n, D]
+    w = jnp.asarray(np.where(np.arange(lmax) == 0, 1.0, 2.0), jnp.float32)  # n > 0 twice
+    gram_z = lambda a, b: jnp.einsum("lcnd,lend,n->ldce", a, b, w)
+    z_re, z_im = gram_z(zr, zr) + gram_z(zi, zi), gram_z(zi, zr) - gram_z(zr, zi)
+    inv = jnp.asarray(1.0 / (2 * np.arange(lmax) + 1), jnp.float32)
+    mean_sq = (jnp.einsum("lxce,ldce,l->xd", f_re, z_re, inv)
+               - jnp.einsum("lxce,ldce,l->xd", f_im, z_im, inv))
+    # Degree 0: h_00 = Σ_c f_0 Z_0, its real part the mean.
+    mean = (jnp.einsum("xc,cd->xd", f[0, 0, 0], zr[0, :, 0])
+            - jnp.einsum("xc,cd->xd", f[0, 0, 1], zi[0, :, 0]))
+    return mean.reshape(-1), mean_sq.reshape(-1)
+
+
 def _full_k(f_l, l):
     """``[2l+1(m), l+1(k≥0), 2, N, C]`` -> ``[2l+1(m), 2l+1(k), 2, N, C]`` by
     ``f̂_{m,-k} = (-1)^{m-k} conj f̂_{-m,k}``."""

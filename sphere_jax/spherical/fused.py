@@ -159,7 +159,12 @@ def moments(h):
     (:func:`transforms.so3_moments`): the batch statistics of :class:`layers.GridBatchNorm`."""
     if not h.on_so3:
         raise ValueError("moments are of SO(3) signals; got an S2 spectrum")
-    mean, mean_sq = transforms.so3_moments(h.coeffs)
+    if isinstance(h, S2Product):          # from its factors: the product is never formed
+        f = h.f.coeffs
+        mean, mean_sq = correlation.s2_product_moments(
+            f.reshape(f.shape[:-1] + (h.n_patches, h.f.channels)), h.kernel)
+    else:
+        mean, mean_sq = transforms.so3_moments(h.coeffs)
     shape = (h.n_patches, h.channels)
     return mean.reshape(shape), mean_sq.reshape(shape)
 

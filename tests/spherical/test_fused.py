@@ -47,6 +47,29 @@ def test_s2_product_blocks_equal_whole_product():
     assert rel_err(prod.block(7, 1), whole[..., 7:8]) < 1e-6            # patch 2, channel 1
 
 
+def test_s2_product_moments_from_its_factors_equal_those_of_the_product():
+    """Batch norm's statistics of an S2 layer's output, taken from the factors without
+    forming the product: the same values and gradients as the dense product's Parseval sum,
+    which the SOFT quadrature of its grid confirms."""
+    rng = np.random.default_rng(2)
+    n, c, d, lmax = 3, 4, 5, 6
+    x = transforms.s2_ifft(reference.random_s2_coeffs(rng, (n, c), 7), 7)
+    grid = correlation.make_grid("near_identity", on_so3=False)
+    w = jnp.asarray(rng.normal(size=grid.shape + (c, d)), jnp.float32)
+    f = fused.analyse(x, lmax, on_so3=False)
+    prod = fused.correlate(f, w, grid, lmax)
+    dense = lambda p: tuple(m.reshape(n, d) for m in transforms.so3_moments(p.coeffs))
+    got, want = fused.moments(prod), dense(prod)
+    on_grid = transforms.so3_grid_moments(fused.synthesise(prod))
+    for g, e, q in zip(got, want, on_grid):
+        assert g.shape == (n, d)
+        assert rel_err(g, e) < 1e-5 and rel_err(g, q) < 1e-4
+    weights = jnp.asarray(rng.normal(size=(n, d)), jnp.float32)
+    loss = lambda moments: lambda w: sum(jnp.sum(m * weights) for m in moments(
+        fused.correlate(f, w, grid, lmax)))
+    assert rel_err(jax.grad(loss(fused.moments))(w), jax.grad(loss(dense))(w)) < 1e-5
+
+
 @pytest.mark.parametrize("s2_first, final_relu", [(True, False), (True, True), (False, False)])
 def test_stack_fused_equals_layer_by_layer(s2_first, final_relu):
     rng = np.random.default_rng(2)
