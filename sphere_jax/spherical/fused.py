@@ -8,10 +8,11 @@ takes from the spectrum — and ReLU)::
 
 That step acts on every (patch, channel) signal on its own, so it runs in blocks of signals
 whose grids stay in the CPU cache, and the backward pass recomputes them block by block
-(:func:`_blocked_map`). A layer-by-layer pass instead writes every grid to memory and reads it
+(:func:`_blocked_map`) and runs each block's adjoint as the same pipeline with transposed
+tables (:func:`_block_step`). A layer-by-layer pass instead writes every grid to memory and reads it
 back several times (for 40 channels at B = 16 that is 5 MB per patch). At inference that
 traffic bounds the transforms on a CPU (LEAD 'paper' describes 2.6× faster fused); a training
-step at 'paper' size is bound by the transforms' arithmetic on both paths (README, Performance).
+step at 'paper' size is bound by the transforms' arithmetic on both paths (docs/performance.md).
 
 Inside a block the layouts differ from :mod:`transforms`: spectra are ``[h, 2(re/im),
 2L-1(m), L/2(n'), L(l), x]`` with n = 2n' + h, and grids ``[2, 2, B, B, 2B(β), x]``, so that
@@ -230,6 +231,19 @@ def _block_tables(b: int, l_in: int, l_out: int):
         tile(d_ana[:, None], (2, 2))))                                 # [h, s, m, n', l, j]
 
 
+@functools.lru_cache(maxsize=None)
+def _adjoint_tables(b: int, l_in: int, l_out: int):
+    """The tables of :func:`_block_tables` transposed for the backward pass, in the same
+    roles: the adjoint of the step runs the analysis tables as a synthesis and the other way
+    round, and each table in the layout of the one whose role it takes keeps every backward
+    GEMM a plain one (autodiff's transposed GEMMs moved grid-sized operands first)."""
+    d_syn, a_syn, g_syn, g_ana, a_ana, d_ana = _block_tables(b, l_in, l_out)
+    t = lambda x, axes: np.ascontiguousarray(np.transpose(x, axes))
+    return (t(d_ana, (0, 1, 2, 3, 5, 4)), t(a_ana, (0, 1, 4, 5, 2, 3)),
+            t(g_ana, (0, 1, 2, 5, 3, 4)), t(g_syn, (0, 1, 2, 4, 5, 3)),
+            t(a_syn, (0, 1, 4, 5, 2, 3)), t(d_syn, (0, 1, 2, 3, 5, 4)))
+
+
 def _sum_diff(a, b, axis: int):
     """``[a + b, a - b]`` stacked on ``axis``: the radix-2 butterfly of both splits."""
     return jnp.stack([a + b, a - b], axis)
@@ -270,28 +284,70 @@ def _bmm(lhs, rhs, batch: int, contract: int):
     return jax.lax.dot_general(lhs, rhs, ((k_lhs, k_rhs), (b_dims, b_dims)))
 
 
-def _pointwise_block(h_HxSxMxNxLxX, scale_X, shift_X, tables, relu):
-    """One block, n split by parity h (n = 2n' + h). The grid inside is ``[p, t, a', g', j, x]``:
-    α index 2a' + p, γ index g' + tB, β index j."""
-    d_syn, a_syn, g_syn, g_ana, a_ana, d_ana = tables
-    b = a_syn.shape[2]
+def _synthesis(h_HxSxMxNxLxX, tables):
+    """β, α, γ synthesis of a block: spectra ``[h, s, m, n', l, x]`` -> ``[p, h, a', g', j,
+    x]`` (α index 2a' + p, β index j; γ index g' + tB once the butterfly over h is applied)."""
+    d_syn, a_syn, g_syn = tables[:3]
     y = _bmm(d_syn, h_HxSxMxNxLxX, 4, 1)                              # β
-    y = _bmm(a_syn, _fold(y, b, 2), 2, 2)                              # α
-    z = _bmm(g_syn, y, 3, 2)                                           # γ of each parity
+    y = _bmm(a_syn, _fold(y, a_syn.shape[2], 2), 2, 2)                 # α
+    return _bmm(g_syn, y, 3, 2)                                        # γ of each parity
 
-    def half(t):                                                       # γ half t = 0 or 1
-        t = t * scale_X + shift_X
-        return jax.nn.relu(t) if relu else t
 
-    # Both butterflies and the activation in one expression, so that XLA makes them one pass
-    # over the grid: stacking the γ halves in between split it in two (Compass's B = 12 step
-    # on 256 patches, one core: 16.0 + 15.8 -> 15.8 ms, the step 210 -> 192 ms).
-    grid_0, grid_1 = half(z[:, 0] + z[:, 1]), half(z[:, 0] - z[:, 1])
-    z = _sum_diff(grid_0, grid_1, 1)                                   # parities h = 0, 1
-    y = _bmm(g_ana, z, 3, 1)                                           # γ
+def _analysis(z_PxHxAxGxJxX, tables):
+    """γ, α, β analysis of a block, the inverse layouts of :func:`_synthesis`."""
+    g_ana, a_ana, d_ana = tables[3:]
+    y = _bmm(g_ana, z_PxHxAxGxJxX, 3, 1)                              # γ
     y = _bmm(a_ana, y, 2, 2)                                           # α
     y = _unfold(y, (d_ana.shape[2] + 1) // 2, 2)                       # [h, s, m, n', j, x]
     return _bmm(d_ana, y, 4, 1)                                        # β
+
+
+def _block_step(tables, adjoint, relu: bool):
+    """The pointwise step of one block, ``(h [h, s, m, n', l, x], scale [x], shift [x]) ->
+    spectra [h, s, m, n', l', x]``, n split by parity h (n = 2n' + h), with its backward pass
+    written out.
+
+    Between the transforms the grid's two γ halves are the butterfly ``z_0 ± z_1`` of the
+    parities. The backward pass is the same pipeline on the cotangent with the ``adjoint``
+    tables (:func:`_adjoint_tables`; both butterflies, the α fold and unfold are each other's
+    transposes) around the activation's derivative, and needs only the forward's synthesis:
+    9 GEMMs per block where autodiff ran 12, none with a transposed operand."""
+    def act(u, scale, shift):
+        u = u * scale + shift
+        return jax.nn.relu(u) if relu else u
+
+    def forward(h, scale, shift):
+        z = _synthesis(h, tables)
+        # Both butterflies and the activation in one expression, so that XLA makes them one
+        # pass over the grid: stacking the γ halves in between split it in two (Compass's
+        # B = 12 step on 256 patches, one core: 16.0 + 15.8 -> 15.8 ms, the step 210 -> 192 ms).
+        grid_0, grid_1 = act(z[:, 0] + z[:, 1], scale, shift), act(z[:, 0] - z[:, 1], scale,
+                                                                    shift)
+        return _analysis(_sum_diff(grid_0, grid_1, 1), tables), z
+
+    @jax.custom_vjp
+    def step(h, scale, shift):
+        return forward(h, scale, shift)[0]
+
+    def step_fwd(h, scale, shift):
+        out, z = forward(h, scale, shift)
+        return out, (z, scale, shift)
+
+    def step_bwd(res, ct):
+        z, scale, shift = res
+        c = _synthesis(ct, adjoint)
+        grads = []
+        for u, c_t in ((z[:, 0] + z[:, 1], c[:, 0] + c[:, 1]),
+                       (z[:, 0] - z[:, 1], c[:, 0] - c[:, 1])):
+            e = c_t * (u * scale + shift > 0) if relu else c_t
+            grads.append((e, u))
+        axes = tuple(range(z.ndim - 2))
+        ct_h = _analysis(_sum_diff(grads[0][0] * scale, grads[1][0] * scale, 1), adjoint)
+        return (ct_h, sum(jnp.sum(e * u, axes) for e, u in grads),
+                sum(jnp.sum(e, axes) for e, _ in grads))
+
+    step.defvjp(step_fwd, step_bwd)
+    return step
 
 
 def _signals_per_block(n_patches, channels, b, block_floats):
@@ -359,7 +415,9 @@ def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
     ``block_floats``: grid floats per block (default :data:`BLOCK_FLOATS`)."""
     b, l_in, c = h.bandwidth, h.lmax, h.channels
     transforms.check_sizes(b, lmax_out, "bandwidth")
-    tables = tuple(jnp.asarray(t, jnp.float32) for t in _block_tables(b, l_in, lmax_out))
+    tables, adjoint = (tuple(jnp.asarray(t, jnp.float32) for t in fn(b, l_in, lmax_out))
+                       for fn in (_block_tables, _adjoint_tables))
+    step = _block_step(tables, adjoint, relu)
     n = h.n_patches
     size = _signals_per_block(n, c, b, block_floats or BLOCK_FLOATS)
     # A block of whole patches takes the same per-signal scale and shift as every other block:
@@ -378,8 +436,8 @@ def pointwise(h, scale_C, shift_C, lmax_out: int, relu: bool = True,
         hb = h.from_pieces(pieces[:k], size)                           # [m, n, l, s, x]
         hb = jnp.pad(hb, ((0, 0), (0, _even(l_in) - l_in)) + ((0, 0),) * 3)
         hb = hb.reshape(hb.shape[:1] + (-1, 2) + hb.shape[2:])
-        fb = _pointwise_block(jnp.transpose(hb, (2, 4, 0, 1, 3, 5)),  # [h, s, m, n', l, x]
-                              pieces[k], pieces[k + 1], tables, relu)
+        fb = step(jnp.transpose(hb, (2, 4, 0, 1, 3, 5)),              # [h, s, m, n', l, x]
+                  pieces[k], pieces[k + 1])
         fb = jnp.transpose(fb, (2, 3, 0, 4, 1, 5))                     # [m, n', h, l, s, x]
         return fb.reshape(fb.shape[:1] + (-1,) + fb.shape[3:])[:, :lmax_out]
 
