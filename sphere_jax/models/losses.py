@@ -23,12 +23,23 @@ def geodesic_loss(pred_x33, target_x33):
 NN_CHUNK = 8
 
 
+def first_argmin(x, axis: int):
+    """``jnp.argmin(x, axis)`` (the first index of the minimum) as two plain reductions: XLA's
+    CPU backend runs argmin's (value, index) reduction element by element, and LEAD's Chamfer
+    searches took a fifth of its training step (32 patches' 1024 × 1024 distances, both
+    directions, 2 cores: 500 -> 260 ms with the gradient)."""
+    axis = axis % x.ndim
+    smallest = jnp.min(x, axis, keepdims=True)
+    index = jax.lax.broadcasted_iota(jnp.int32, x.shape, axis)
+    return jnp.min(jnp.where(x == smallest, index, x.shape[axis]), axis)
+
+
 def _nearest(a_PxNx3, b_PxMx3):
     """Indices of each point's nearest neighbour in the other cloud, ``([P, N], [P, M])``."""
     # |a|² + |b|² - 2ab is a GEMM.
     d2 = (jnp.sum(a_PxNx3 ** 2, -1)[..., :, None] + jnp.sum(b_PxMx3 ** 2, -1)[..., None, :]
           - 2.0 * jnp.einsum("...nd,...md->...nm", a_PxNx3, b_PxMx3))
-    return jnp.argmin(d2, -1), jnp.argmin(d2, -2)
+    return first_argmin(d2, -1), first_argmin(d2, -2)
 
 
 def chamfer_distance(a_Nx3, b_Mx3):

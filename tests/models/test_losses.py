@@ -64,3 +64,10 @@ def test_bad_inputs():
         losses.chamfer_distance(jnp.zeros((0, 3)), jnp.zeros((4, 3)))
     with pytest.raises(ValueError, match="a_Nx3 and b_Mx3"):
         losses.chamfer_distance(jnp.zeros((5, 2)), jnp.zeros((4, 3)))
+
+
+@pytest.mark.parametrize("axis", [0, 1, -1])
+def test_first_argmin_is_argmin_with_ties(axis):
+    """Small integers make many ties: the first index of the minimum, as jnp.argmin."""
+    x = jnp.asarray(np.random.default_rng(3).integers(0, 4, size=(7, 9, 5)), jnp.float32)
+    np.testing.assert_array_equal(losses.first_argmin(x, axis), jnp.argmin(x, axis))
