@@ -32,7 +32,12 @@ class _GridCodeDense(nn.Module):
                             (grid_Gx2.shape[-1] + code_NxD.shape[-1], self.width))
         bias = self.param("bias", nn.initializers.zeros_init(), (self.width,))
         g = grid_Gx2.shape[-1]
-        return (grid_Gx2 @ kernel[:g])[None] + (code_NxD @ kernel[g:] + bias)[:, None, :]
+        # The grid's part is the same for every patch. Broadcast, its gradient was a reduction
+        # over the patches that XLA's CPU backend ran at a fifth of the speed of this outer
+        # product's, a GEMV (32 patches x 1024 x 512: 184 -> 45 ms for the layer's gradient).
+        ones = jnp.ones(code_NxD.shape[:1], code_NxD.dtype)
+        return jnp.einsum("n,gw->ngw", ones, grid_Gx2 @ kernel[:g]) \
+            + (code_NxD @ kernel[g:] + bias)[:, None, :]
 
 
 class FoldingDecoder(nn.Module):
