@@ -42,7 +42,7 @@ def auto_data(bundle, roots, voxel="auto", radius="auto"):
 
 
 def main(argv=None):
-    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(doc=__doc__)
     parser.add_argument("--bundle", required=True, help="a bundle folder or a shipped kind")
     parser.add_argument("--data", required=True, help="scan folders or files, comma-separated")
     parser.add_argument("--minutes", type=cli.positive_number, default=None,

@@ -96,7 +96,18 @@ scale = _number(lambda t: t if t == "auto" else float(t),
 
 class ArgumentParser(argparse.ArgumentParser):
     """argparse whose refusals are one line on stderr with exit status 2, like the absl mains'
-    (argparse's own print the usage first)."""
+    (argparse's own print the usage first). ``doc``: the main's docstring, whose first
+    paragraph becomes ``--help``'s description; the usage line names the command as it is
+    typed (``python -m experiments.NAME``), not the file."""
+
+    def __init__(self, *args, doc=None, **kwargs):
+        if doc is not None:
+            kwargs.setdefault("description", " ".join(doc.split("\n\n")[0].split()))
+        path = os.path.abspath(sys.argv[0])
+        if os.path.basename(os.path.dirname(path)) == "experiments":
+            kwargs.setdefault("prog", "python -m experiments."
+                              + os.path.splitext(os.path.basename(path))[0])
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         fail(message)

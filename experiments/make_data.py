@@ -26,7 +26,7 @@ PACK_VOXEL = 0.02              # m: the voxel of the 'mid' configs, which train 
 
 
 def main(argv=None):
-    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(doc=__doc__)
     parser.add_argument("--out", default=None,
                         help="output folder (default data: the package's cache folder)")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)

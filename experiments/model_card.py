@@ -13,7 +13,7 @@ from experiments import cli
 
 
 def main(argv=None):
-    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(doc=__doc__)
     parser.add_argument("bundle", nargs="?",
                         help="a bundle folder (the 'bundle' a training run writes)")
     parser.add_argument("--index", action="store_true",

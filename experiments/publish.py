@@ -295,7 +295,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
 
 
 def main(argv=None):
-    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(doc=__doc__)
     parser.add_argument("runs", nargs="*", help="experiments.evaluate workdirs")
     parser.add_argument("--headline", default=None, help="the run of the README's table")
     parser.add_argument("--adaptation", action="append", default=[],

@@ -31,7 +31,7 @@ FAILED = 3          # exit status of a registration that did not succeed (2: bad
 
 
 def main(argv=None):
-    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(doc=__doc__)
     parser.add_argument("source")
     parser.add_argument("target")
     parser.add_argument("--method", default=align.DEFAULT_METHOD,

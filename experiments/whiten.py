@@ -18,7 +18,7 @@ from sphere_jax.features import whitening_fit
 
 
 def main(argv=None):
-    parser = cli.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = cli.ArgumentParser(doc=__doc__)
     parser.add_argument("--bundle", required=True, help="a descriptor bundle folder")
     parser.add_argument("--compass", default=None,
                         help="LEAD only: the Compass bundle whose frames the 'compass' "

@@ -140,6 +140,17 @@ def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_
     assert not (tmp_path / "w").exists()
 
 
+def test_help_names_the_command_and_says_what_it_does_in_full():
+    """``--help`` of an argparse main: the usage names the command as typed and the
+    description is the docstring's whole first paragraph, not its first line cut short."""
+    out = run("experiments.adapt", "--help")
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("usage: python -m experiments.adapt [-h] --bundle BUNDLE")
+    text = " ".join(out.stdout.split())
+    assert ("frame consistency) on your scans, for a number of minutes or steps, stopping "
+            "early when the loss on held-back keypoints stops improving.") in text
+
+
 @pytest.mark.parametrize("main", ["experiments.train", "experiments.evaluate"])
 def test_unusable_or_busy_workdirs_are_one_line_and_status_2(main, tmp_path):
     from tests.test_workdirs import HOLD
