@@ -60,6 +60,31 @@ def test_loss_decreases_on_a_fixed_batch(small_root):
     assert np.mean(losses[-5:]) < 0.7 * np.mean(losses[:5])
 
 
+@pytest.mark.parametrize("frozen", [False, True])
+def test_frozen_batch_norm_trains_the_network_as_it_is_evaluated(small_root, frozen):
+    """``train.frozen_batch_norm`` (adaptation): a step's loss is the evaluation's on the same
+    batch and the running moments stay; by default batch norm uses the batch's moments and
+    updates the running ones."""
+    config = tiny("lead_pn", small_root)
+    if frozen:
+        config.train.frozen_batch_norm = True
+    source = training.build_source(config)
+    model = training.training_model(config)
+    tx = training.optimiser()
+    batch = training.get_batch(config, source, 0)
+    state = training.init_state(config, model, tx, batch)
+    step, evaluate = training.make_steps(config, model, tx)
+    expected = float(evaluate(state, batch)["loss"])
+    before = jax.tree_util.tree_map(np.asarray, state["batch_stats"])
+    state, metrics = step(state, batch)
+    moved = max(float(np.abs(np.asarray(a) - b).max()) for a, b in zip(
+        jax.tree_util.tree_leaves(state["batch_stats"]), jax.tree_util.tree_leaves(before)))
+    if frozen:
+        assert abs(float(metrics["loss"]) - expected) <= 1e-5 * expected and moved == 0.0
+    else:
+        assert abs(float(metrics["loss"]) - expected) > 1e-3 * expected and moved > 0.0
+
+
 def test_resumed_training_equals_uninterrupted(small_root, tmp_path):
     full = tiny("sound", small_root, steps=4, checkpoint_every=2, eval_every=4, log_every=1)
     ref, _ = training.train_and_evaluate(full, str(tmp_path / "a"), progress=False)
@@ -92,11 +117,12 @@ def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_roo
     assert bundle.steps_done(bundle.read_config(str(tmp_path / "bundle"))) == 3
 
 
-def _max_change(bundle_a, bundle_b):
-    """The largest change of any parameter between two bundles' weights."""
+def _max_change(bundle_a, bundle_b, collection="params"):
+    """The largest change of any variable of ``collection`` between two bundles."""
     from sphere_jax import api
-    a, b = (jax.tree_util.tree_leaves(api.load_bundle(p).variables["params"])
+    a, b = (jax.tree_util.tree_leaves(api.load_bundle(p).variables[collection])
             for p in (bundle_a, bundle_b))
+    assert a, collection
     return max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in zip(a, b))
 
 
@@ -186,6 +212,7 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path, capsy
     from sphere_jax.training import adaptation
     train = bundle.read_config(tmp_path / "adapted" / "bundle").train
     assert train.eval_batches * train.batch_size >= adaptation.EVAL_PATCHES >= 256
+    assert train.frozen_batch_norm is False          # Compass adapts with batch moments
     # The workdir is an adaptation of those weights: the same command resumes it, while a
     # retrained bundle adapted there is refused rather than continuing the old adaptation.
     adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={scans}",
@@ -240,6 +267,10 @@ def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path,
     assert adapted.config.data.voxel != config.data.voxel          # chosen from the scans
     # From the bundle, not an init (the warm-up's first step has rate 0: it may not move yet).
     assert _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle") < 5e-3
+    # Fine-tuned as it is used: batch norm by the bundle's running moments, which it keeps.
+    assert adapted.config.train.frozen_batch_norm is True
+    assert _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle",
+                       "batch_stats") == 0.0
 
 
 def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path, monkeypatch):

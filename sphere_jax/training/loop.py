@@ -111,12 +111,17 @@ def make_steps(config, model, tx, mesh=None):
     # loop inside the models (fused.pointwise's) to mark its zero-initialised carry as varying.
     shard = functools.partial(jax.shard_map, mesh=mesh, out_specs=rep, check_vma=False)
 
+    # A fine-tune with frozen batch norm (adaptation) trains the network as it is used: batch
+    # norm with the running moments, which stay as they were.
+    batch_moments = not config.train.get("frozen_batch_norm", False)
+
     def local_grads(params, batch_stats, batch, rng):
         # Dropout masks differ per device (as they would per row on one device).
         rng = jax.random.fold_in(rng, jax.lax.axis_index(parallel.AXIS))
 
         def f(p):
-            return loss_fn(config, model, {"params": p, "batch_stats": batch_stats}, batch, rng)
+            return loss_fn(config, model, {"params": p, "batch_stats": batch_stats}, batch, rng,
+                           train=batch_moments)
 
         (_, (metrics, stats)), grads = jax.value_and_grad(f, has_aux=True)(params)
         return (jax.lax.pmean(grads, parallel.AXIS), jax.lax.pmean(metrics, parallel.AXIS),
