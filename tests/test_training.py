@@ -45,14 +45,19 @@ def test_one_step_of_every_config(name, small_root, tmp_path):
     assert json.loads(lines[-1])["step"] == 1 and "val_loss" in json.loads(lines[-1])
 
 
-def test_loss_decreases_on_a_fixed_batch(small_root):
-    config = tiny("lead", small_root, learning_rate=3e-3)
+def _fresh_steps(config):
+    """``(state, batch, train_step, eval_step)``: a freshly initialised model of ``config`` and
+    its first training batch."""
     source = training.build_source(config)
     model = training.training_model(config)
     tx = training.optimiser()
     batch = training.get_batch(config, source, 0)
-    state = training.init_state(config, model, tx, batch)
-    step, _ = training.make_steps(config, model, tx)
+    return (training.init_state(config, model, tx, batch), batch,
+            *training.make_steps(config, model, tx))
+
+
+def test_loss_decreases_on_a_fixed_batch(small_root):
+    state, batch, step, _ = _fresh_steps(tiny("lead", small_root, learning_rate=3e-3))
     losses = []
     for _ in range(50):
         state, metrics = step(state, batch)
@@ -68,12 +73,7 @@ def test_frozen_batch_norm_trains_the_network_as_it_is_evaluated(small_root, fro
     config = tiny("lead_pn", small_root)
     if frozen:
         config.train.frozen_batch_norm = True
-    source = training.build_source(config)
-    model = training.training_model(config)
-    tx = training.optimiser()
-    batch = training.get_batch(config, source, 0)
-    state = training.init_state(config, model, tx, batch)
-    step, evaluate = training.make_steps(config, model, tx)
+    state, batch, step, evaluate = _fresh_steps(config)
     expected = float(evaluate(state, batch)["loss"])
     before = jax.tree_util.tree_map(np.asarray, state["batch_stats"])
     state, metrics = step(state, batch)
