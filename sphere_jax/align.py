@@ -198,8 +198,9 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if adapt and not frame_kinds(chosen):
         able = [m.name for m in registry.METHODS if m.kind != "diagnostic" and frame_kinds(m)]
         why = ("which has no network to adapt" if not chosen.learned else
-               "whose frames are not learned (adapting its descriptor with its reconstruction "
-               "loss lowered its inlier ratio or kept its weights: docs/results.md)")
+               "whose frames are not learned (adapting its descriptor raised its inlier ratio "
+               "but cost 7-11 % of its correct matches: docs/training.md; "
+               "experiments.adapt does it)")
         raise checks.InputError("adapt", f"used with a method whose frames are learned "
                                 f"({', '.join(able)})", f"method {chosen.name!r}, {why}")
     seconds, t0 = {}, time.perf_counter()
@@ -260,8 +261,9 @@ def method_bundles(method: registry.Method, bundle=None):
 def frame_kinds(method: registry.Method) -> tuple[str, ...]:
     """The bundle kinds whose learned frames ``method`` uses (Compass, SOUND): what ``adapt``
     fine-tunes. Adapting the frames raised LEAD (Compass)'s inlier ratio on the bunny's scans
-    and on redkitchen (and lowered it on LiDAR rescans); adapting LEAD's or LEAD-PN's
-    reconstruction never helped their matching (the adaptation tables of docs/results.md)."""
+    by 9 % with 10 % more correct matches; adapting LEAD's or LEAD-PN's reconstruction raised
+    their inlier ratios by 3-22 % but cost 7-11 % of their correct matches (the adaptation
+    tables of docs/results.md, docs/training.md)."""
     from sphere_jax import models
     return tuple(k for k in method.needs if models.spec(k).orient is not None)
 
