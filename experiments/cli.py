@@ -24,9 +24,14 @@ from sphere_jax import checks, compile_cache
 USAGE = 2
 
 
+def _main_name() -> str:
+    """The running main's module name (``train`` for ``python -m experiments.train``)."""
+    name = os.path.splitext(os.path.basename(sys.argv[0]))[0]
+    return {"__main__": "experiments"}.get(name, name)
+
+
 def fail(message, status=USAGE):
-    prog = os.path.splitext(os.path.basename(sys.argv[0]))[0]
-    prog = {"__main__": "experiments"}.get(prog, prog)
+    prog = _main_name()
     first = str(message).strip().splitlines()
     print(f"{prog}: error: {' '.join(line.strip() for line in first)}", file=sys.stderr)
     sys.exit(status)
@@ -103,10 +108,8 @@ class ArgumentParser(argparse.ArgumentParser):
     def __init__(self, *args, doc=None, **kwargs):
         if doc is not None:
             kwargs.setdefault("description", " ".join(doc.split("\n\n")[0].split()))
-        path = os.path.abspath(sys.argv[0])
-        if os.path.basename(os.path.dirname(path)) == "experiments":
-            kwargs.setdefault("prog", "python -m experiments."
-                              + os.path.splitext(os.path.basename(path))[0])
+        if os.path.basename(os.path.dirname(os.path.abspath(sys.argv[0]))) == "experiments":
+            kwargs.setdefault("prog", f"python -m experiments.{_main_name()}")
         super().__init__(*args, **kwargs)
 
     def error(self, message):

@@ -77,8 +77,7 @@ def test_frozen_batch_norm_trains_the_network_as_it_is_evaluated(small_root, fro
     expected = float(evaluate(state, batch)["loss"])
     before = jax.tree_util.tree_map(np.asarray, state["batch_stats"])
     state, metrics = step(state, batch)
-    moved = max(float(np.abs(np.asarray(a) - b).max()) for a, b in zip(
-        jax.tree_util.tree_leaves(state["batch_stats"]), jax.tree_util.tree_leaves(before)))
+    moved = _max_difference(state["batch_stats"], before)
     if frozen:
         assert abs(float(metrics["loss"]) - expected) <= 1e-5 * expected and moved == 0.0
     else:
@@ -117,13 +116,18 @@ def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_roo
     assert bundle.steps_done(bundle.read_config(str(tmp_path / "bundle"))) == 3
 
 
+def _max_difference(tree_a, tree_b):
+    """The largest absolute difference between the leaves of two pytrees of arrays."""
+    a, b = jax.tree_util.tree_leaves(tree_a), jax.tree_util.tree_leaves(tree_b)
+    assert a and len(a) == len(b)
+    return max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in zip(a, b))
+
+
 def _max_change(bundle_a, bundle_b, collection="params"):
     """The largest change of any variable of ``collection`` between two bundles."""
     from sphere_jax import api
-    a, b = (jax.tree_util.tree_leaves(api.load_bundle(p).variables[collection])
-            for p in (bundle_a, bundle_b))
-    assert a, collection
-    return max(float(np.abs(np.asarray(x) - np.asarray(y)).max()) for x, y in zip(a, b))
+    return _max_difference(*(api.load_bundle(p).variables[collection]
+                             for p in (bundle_a, bundle_b)))
 
 
 def test_run_continues_from_its_committed_bundle(small_root, tmp_path):
