@@ -74,6 +74,8 @@ def base(size: str) -> ml_collections.ConfigDict:
         init_bundle="",           # continue a run from its committed bundle (another machine)
         finetune_bundle="",       # start from a bundle's weights at step 0 (other data)
         time_budget_s=0.0,        # > 0: stop (checkpoint, bundle) once the loop ran this long
+        pack="",                  # read data.root from this pack (make_data --pack): another
+                                  # machine, the same batches
         devices=0))               # data-parallel devices per host; 0: all local devices
     if size == "mid":
         c.data.n_points = 1024

@@ -1,4 +1,4 @@
-"""experiments/gpu_paper.sh, the accelerator run of the 'paper' networks, at the tests' size on
+"""experiments/gpu_train.sh, the training run on a lent accelerator, at the tests' size on
 this CPU: from a pack of scans to a loadable bundle stopped by its time budget (one kind: every
 kind's training is tested in tests/test_training.py)."""
 import json
@@ -9,8 +9,10 @@ import tarfile
 import numpy as np
 import pytest
 
-from sphere_jax import api
-from sphere_jax.data import pipeline
+from sphere_jax import api, checks
+from configs import lead_pn
+from sphere_jax.data import evaluation_scenes, pipeline
+from sphere_jax.training import inputs
 from sphere_jax.data.generators import synthetic
 from tests.data.generators.test_synthetic import SMALL
 
@@ -36,13 +38,43 @@ def test_pack_trains_the_same_keypoints_and_batches(scans, tmp_path):
     assert all(k == f"{folder_a} (packed at 0.04 m)" for k in b.statement()["folders"])
 
 
+def test_a_pack_stands_in_for_its_entries(scans, tmp_path):
+    folders = list(pipeline.pack_scans(scans, 0.04, str(tmp_path / "pack")))
+    assert pipeline.packed_folders(scans, str(tmp_path / "pack")) == folders
+    assert pipeline.scan_groups(scans, pack=str(tmp_path / "pack")) == \
+        [pipeline.find_scans(f) for f in folders]
+    with pytest.raises(checks.MissingError, match="embedded:7"):
+        pipeline.packed_folders(f"{scans},embedded:7", str(tmp_path / "pack"))
+    with pytest.raises(checks.MissingError, match="not a folder"):
+        pipeline.packed_folders(scans, str(tmp_path / "nowhere"))
+    assert pipeline.packed_origins(folders) == [
+        pipeline.scan_folder_label(p) for p in pipeline.scan_paths(scans)]
+
+
+def test_a_pack_of_an_evaluation_scene_is_refused(scans, tmp_path):
+    """The rule holds where only the pack is: its scans name their origin (here the bunny's,
+    under an innocent data.root)."""
+    folder, = pipeline.pack_scans(scans, 0.04, str(tmp_path / "pack"))
+    index_path = os.path.join(folder, pipeline.PACK_INDEX)
+    with open(index_path) as f:
+        index = json.load(f)
+    index["scans"] = {k: "shared/stanford/bunny/data" for k in index["scans"]}
+    with open(index_path, "w") as f:
+        json.dump(index, f)
+    config = lead_pn.get_config("tiny")
+    config.data.root, config.train.pack = scans, str(tmp_path / "pack")
+    with pytest.raises(evaluation_scenes.EvaluationSceneError, match="bunny"):
+        inputs.check_roots(config)
+
+
 def test_gpu_script_brings_back_a_bundle_stopped_by_its_budget(scans, tmp_path):
     carry = tmp_path / "carry"
     pipeline.pack_scans(scans, 0.04, str(carry / "pack"))
+    (carry / "root.txt").write_text(scans + "\n")
     out = tmp_path / "out"
     out.mkdir()
     env = dict(os.environ, CARRY=str(carry), SIZE="tiny", OUT=str(out), KINDS="lead_pn")
-    subprocess.run(["bash", "experiments/gpu_paper.sh", "train", "0.0001",
+    subprocess.run(["bash", "experiments/gpu_train.sh", "train", "0.0001",
                     "--config.data.voxel=0.04", "--config.data.radius=0.5",
                     "--config.data.keypoint_leaf=0.5", "--config.train.steps=50",
                     "--host_devices=1"], cwd=ROOT, env=env, check=True, capture_output=True)
@@ -50,6 +82,7 @@ def test_gpu_script_brings_back_a_bundle_stopped_by_its_budget(scans, tmp_path):
         t.extractall(tmp_path / "back", filter="data")
     b = api.load_bundle(tmp_path / "back" / "lead_pn" / "bundle")
     assert b.config.model == "lead_pn"
+    assert b.config.data.root == scans and b.config.train.pack == str(carry / "pack")
     assert b.config.train.steps_done == 1 < b.config.train.steps == 50    # the budget ended it
     steps = [json.loads(x)["step"] for x in
              (tmp_path / "back" / "lead_pn" / "metrics.jsonl").read_text().splitlines()]

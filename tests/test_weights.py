@@ -17,7 +17,7 @@ BUNDLES = sorted(os.path.dirname(p) for p in
 # The kinds whose 'mid' config is the whole recipe of the shipped bundle.
 RECIPES = ("compass", "lead", "lead_pn", "sound")
 # How a run was split over machines, not what it is.
-RUN_FIELDS = ("steps_done", "init_bundle", "time_budget_s", "devices")
+RUN_FIELDS = ("steps_done", "init_bundle", "time_budget_s", "devices", "pack")
 
 
 def _name(path):

@@ -40,10 +40,13 @@ def find_scans(root):
     return found
 
 
-def scan_groups(roots):
+def scan_groups(roots, pack=""):
     """Scan files of each entry of a comma-separated list of folders (or scan files), one list
     per entry (:func:`resolve_root` reads each entry), so real scans can be added to the
-    synthetic ones: ``embedded,embedded:1,/data/3dmatch/demo``."""
+    synthetic ones: ``embedded,embedded:1,/data/3dmatch/demo``. ``pack``: a folder of
+    :func:`pack_scans` that holds every entry, read instead (:func:`packed_folders`)."""
+    if pack:
+        return [find_scans(folder) for folder in packed_folders(roots, pack)]
     return [find_scans(resolve_root(r)) for r in root_entries(roots)]
 
 
@@ -451,7 +454,7 @@ def pack_scans(roots, voxel, out_dir):
     for k, (name, group) in enumerate(zip(names, scan_groups(roots))):
         slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", os.path.basename(name.rstrip("/")) or name)
         folder = workdirs.prepare(os.path.join(out_dir, f"{k}-{slug}"), "out_dir")
-        index = {"voxel": voxel, "scans": {}}
+        index = {"entry": name, "voxel": voxel, "scans": {}}
         for i, path in enumerate(group):
             file = f"scan_{i:03d}.ply"
             ply.write_ply(os.path.join(folder, file), load_scan(path, voxel))
@@ -459,6 +462,29 @@ def pack_scans(roots, voxel, out_dir):
         io.atomic_write(os.path.join(folder, PACK_INDEX), json.dumps(index, indent=1).encode())
         written[folder] = len(group)
     return written
+
+
+def packed_folders(roots, pack):
+    """The folders of the pack ``pack`` (:func:`pack_scans`) that hold the entries of
+    ``roots``, in their order: the same data.root read on a machine without the renderer,
+    open3d or the real scans (:class:`~sphere_jax.checks.MissingError` naming an entry the
+    pack lacks)."""
+    if not os.path.isdir(str(pack)):
+        raise checks.MissingError(f"train.pack {pack!r} is not a folder (make one with "
+                                  f"python -m experiments.make_data --pack=ROOTS --out=DIR)")
+    held = {}
+    for folder in sorted(glob.glob(os.path.join(str(pack), "*", PACK_INDEX))):
+        held.setdefault(_pack_index(os.path.dirname(folder)).get("entry"), os.path.dirname(folder))
+    missing = [e for e in root_entries(roots) if e not in held]
+    if missing:
+        raise checks.MissingError(f"train.pack {pack!r} holds no pack of the data.root "
+                                  f"entries {missing} (it holds {sorted(map(str, held))})")
+    return [held[e] for e in root_entries(roots)]
+
+
+def packed_origins(folders):
+    """Where the scans of pack folders came from (their ``SOURCE.json``)."""
+    return [origin for f in folders for origin in _pack_index(f)["scans"].values()]
 
 
 def _pack_index(folder):

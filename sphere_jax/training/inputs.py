@@ -16,8 +16,13 @@ def check_roots(config):
     if models.spec(config.model).labelled or d.get("shapes", False):
         return
     entries = pipeline.root_entries(d.root)
-    evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries],
-                                           bool(d.get("allow_evaluation_scenes", False)))
+    allow = bool(d.get("allow_evaluation_scenes", False))
+    pack = config.train.get("pack", "")
+    if pack:                            # another machine: the entries are read from the pack,
+        evaluation_scenes.check_training_scans(     # which names where each scan came from
+            entries + pipeline.packed_origins(pipeline.packed_folders(d.root, pack)), allow)
+        return
+    evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries], allow)
     for entry in entries:
         if not entry.startswith("embedded") and not os.path.exists(pipeline.entry_path(entry)):
             raise checks.ConfigError("config.data.root", "comma-separated scan files or "
@@ -35,7 +40,8 @@ def build_source(config):
                                     d.get("holdout_every", 0))
     allow = bool(d.get("allow_evaluation_scenes", False))
     check_roots(config)              # the entries first (before an RGB-D sequence is fused),
-    groups = pipeline.scan_groups(d.root)        # then every scan and its origin
+    # then every scan and its origin
+    groups = pipeline.scan_groups(d.root, config.train.get("pack", ""))
     scans = [p for g in groups for p in g]
     evaluation_scenes.check_training_scans(
         scans + [pipeline.scan_folder_label(p) for p in scans], allow)
