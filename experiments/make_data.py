@@ -8,8 +8,9 @@ The first: synthetic indoor scenes in the 3DMatch layout, a ModelNet-layout shap
 object frames and object crops in the Washington RGB-D layout (see
 :mod:`sphere_jax.data.generators.synthetic`); same seed, same bytes. The second: each entry of
 a ``data.root`` list voxelised once (:func:`sphere_jax.data.pipeline.pack_scans`), one folder
-per entry; those folders, comma-joined in order, are a ``data.root`` that draws the same
-keypoints and batches without open3d (``experiments/gpu_train.sh`` carries one). The third:
+per entry; ``--config.train.pack=DIR`` then trains a config on them, keeping its
+``data.root``, with the same keypoints and batches and without open3d, the renderer or the
+real scans (``experiments/gpu_train.sh`` carries one to a lent accelerator). The third:
 a 3DMatch scene's fragments as a 32-beam spinning LiDAR at their first camera sees them
 (:mod:`sphere_jax.data.generators.lidar`), a sensor the shipped bundles never saw; evaluate
 them with the source's ground truth (``--config.data.gt=``, the folder above its
