@@ -226,6 +226,7 @@ def readme_block(readme, name, content):
 
 
 SECTION = re.compile(r"^<!-- section: (.+?) -->$", re.M)
+ADAPTATION = "adaptation "          # the key prefix of an adaptation section
 
 
 def run_key(run_dir) -> str:
@@ -238,8 +239,10 @@ def run_key(run_dir) -> str:
 
 def merged_sections(old_text, sections, drop=()):
     """``[(key, markdown)]``: the sections of ``old_text`` (a results file this module wrote)
-    in their order, each replaced by its namesake in ``sections``, new keys appended, those
-    named in ``drop`` left out (a :class:`ValueError` for one it does not hold)."""
+    in their order, each replaced by its namesake in ``sections``, those named in ``drop``
+    left out (a :class:`ValueError` for one it does not hold). A new adaptation section goes
+    after the last adaptation section, where a reader finds the others; other new keys are
+    appended."""
     found = SECTION.split(old_text)[1:]           # [key, text, key, text, ...]
     merged = {k: t.strip() for k, t in zip(found[::2], found[1::2])}
     missing = [k for k in drop if k not in merged]
@@ -247,8 +250,14 @@ def merged_sections(old_text, sections, drop=()):
         raise ValueError(f"--drop: no section {missing[0]!r} (there are: {', '.join(merged)})")
     for key in drop:
         del merged[key]
-    merged.update((k, t.strip()) for k, t in sections)
-    return list(merged.items())
+    order = list(merged)
+    for key, text in sections:
+        if key not in merged:
+            kin = [i for i, k in enumerate(order) if k.startswith(ADAPTATION)]
+            at = kin[-1] + 1 if key.startswith(ADAPTATION) and kin else len(order)
+            order.insert(at, key)
+        merged[key] = text.strip()
+    return [(k, merged[k]) for k in order]
 
 
 def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations=(),
@@ -261,7 +270,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
     sections = [(run_key(d), section(record, md)) for d, record, md in runs]
     # An adaptation section is its adapted run's: published again with another 'before' run,
     # it replaces the one it had.
-    sections += [(f"adaptation {run_key(after)}", adaptation_section(before, after))
+    sections += [(f"{ADAPTATION}{run_key(after)}", adaptation_section(before, after))
                  for before, after in adaptations]
     if not fresh and os.path.isfile(results):
         sections = merged_sections(open(results).read(), sections, drop)

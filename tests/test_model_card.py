@@ -236,6 +236,16 @@ def test_publishing_a_run_again_replaces_only_its_own_section(tmp_path):
     assert "/data/b" not in open(results).read()
 
 
+def test_a_new_adaptation_section_joins_the_others():
+    old = "".join(f"<!-- section: {k} -->\n{k} text\n\n" for k in
+                  ("runs/a", "adaptation runs/a2", "runs/b"))
+    got = publish.merged_sections(old, [("adaptation runs/b2", "new"), ("runs/c", "c"),
+                                        ("runs/a", "a again")])
+    assert [k for k, _ in got] == ["runs/a", "adaptation runs/a2", "adaptation runs/b2",
+                                   "runs/b", "runs/c"]
+    assert dict(got)["runs/a"] == "a again"
+
+
 def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_path):
     """An LRF run with test-time adaptation records the shipped bundle; the one it adapted
     lies in its folder (``adapted_compass/bundle``): the section compares repeatability and
