@@ -33,6 +33,9 @@ def run(*args, cwd=ROOT):
      "evaluate: error: config.data.max_pairs must be an integer >= 0 (0: every pair); got -1"),
     (["experiments.train", "--config=lead:tiny", "--config.data.root=embedded:1,/nonexistent"],
      "train: error: config.data.root must be comma-separated scan files or folders"),
+    (["experiments.train", "--config=lead:tiny", "--config.train.pack=/nonexistent"],
+     "train: error: config.train.pack must be a folder made by python -m "
+     "experiments.make_data --pack=ROOTS --out=DIR; got '/nonexistent'"),
     (["experiments.evaluate", "--config=eval_registration", "--config.methods=lead,foo"],
      "evaluate: error: config.methods must be a comma-separated list of fpfh, "),
     (["experiments.evaluate", "--config=eval_registration", "--config.methods=lead",

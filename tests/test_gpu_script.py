@@ -43,9 +43,9 @@ def test_a_pack_stands_in_for_its_entries(scans, tmp_path):
     assert pipeline.packed_folders(scans, str(tmp_path / "pack")) == folders
     assert pipeline.scan_groups(scans, pack=str(tmp_path / "pack")) == \
         [pipeline.find_scans(f) for f in folders]
-    with pytest.raises(checks.MissingError, match="embedded:7"):
+    with pytest.raises(checks.ConfigError, match="embedded:7"):
         pipeline.packed_folders(f"{scans},embedded:7", str(tmp_path / "pack"))
-    with pytest.raises(checks.MissingError, match="not a folder"):
+    with pytest.raises(checks.ConfigError, match="must be a folder made by"):
         pipeline.packed_folders(scans, str(tmp_path / "nowhere"))
     assert pipeline.packed_origins(folders) == [
         pipeline.scan_folder_label(p) for p in pipeline.scan_paths(scans)]

@@ -467,18 +467,19 @@ def pack_scans(roots, voxel, out_dir):
 def packed_folders(roots, pack):
     """The folders of the pack ``pack`` (:func:`pack_scans`) that hold the entries of
     ``roots``, in their order: the same data.root read on a machine without the renderer,
-    open3d or the real scans (:class:`~sphere_jax.checks.MissingError` naming an entry the
-    pack lacks)."""
+    open3d or the real scans (:class:`~sphere_jax.checks.ConfigError` for a pack that is not
+    there or lacks an entry, naming it)."""
     if not os.path.isdir(str(pack)):
-        raise checks.MissingError(f"train.pack {pack!r} is not a folder (make one with "
-                                  f"python -m experiments.make_data --pack=ROOTS --out=DIR)")
+        raise checks.ConfigError("config.train.pack", "a folder made by python -m "
+                                 "experiments.make_data --pack=ROOTS --out=DIR", pack)
     held = {}
     for folder in sorted(glob.glob(os.path.join(str(pack), "*", PACK_INDEX))):
         held.setdefault(_pack_index(os.path.dirname(folder)).get("entry"), os.path.dirname(folder))
     missing = [e for e in root_entries(roots) if e not in held]
     if missing:
-        raise checks.MissingError(f"train.pack {pack!r} holds no pack of the data.root "
-                                  f"entries {missing} (it holds {sorted(map(str, held))})")
+        raise checks.ConfigError(f"config.train.pack {str(pack)!r} holds no pack of the "
+                                 f"data.root entries {missing} (it holds "
+                                 f"{sorted(map(str, held))})")
     return [held[e] for e in root_entries(roots)]
 
 
