@@ -246,6 +246,17 @@ def test_a_new_adaptation_section_joins_the_others():
     assert dict(got)["runs/a"] == "a again"
 
 
+def test_the_contents_link_each_section_by_its_github_anchor():
+    sections = [("a", "## Registration benchmark on ../shared/data/x-y, ground truth z\n\n|"),
+                ("b", "no title"), ("c", "## LRF repeatability on d"),
+                ("e", "## LRF repeatability on d")]
+    assert publish.contents(sections) == [
+        "- [Registration benchmark on ../shared/data/x-y, ground truth z]"
+        "(#registration-benchmark-on-shareddatax-y-ground-truth-z)",
+        "- [LRF repeatability on d](#lrf-repeatability-on-d)",
+        "- [LRF repeatability on d](#lrf-repeatability-on-d-1)"]
+
+
 def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_path):
     """An LRF run with test-time adaptation records the shipped bundle; the one it adapted
     lies in its folder (``adapted_compass/bundle``): the section compares repeatability and
