@@ -47,8 +47,9 @@ def test_a_pack_stands_in_for_its_entries(scans, tmp_path):
         pipeline.packed_folders(f"{scans},embedded:7", str(tmp_path / "pack"))
     with pytest.raises(checks.ConfigError, match="must be a folder made by"):
         pipeline.packed_folders(scans, str(tmp_path / "nowhere"))
-    assert pipeline.packed_origins(folders) == [
-        pipeline.scan_folder_label(p) for p in pipeline.scan_paths(scans)]
+    assert [pipeline.scan_folder_label(p) for f in folders for p in pipeline.find_scans(f)] \
+        == [pipeline.scan_folder_label(p) + " (packed at 0.04 m)"
+            for p in pipeline.scan_paths(scans)]
 
 
 def test_a_pack_of_an_evaluation_scene_is_refused(scans, tmp_path):

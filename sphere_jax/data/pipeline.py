@@ -473,19 +473,15 @@ def packed_folders(roots, pack):
         raise checks.ConfigError("config.train.pack", "a folder made by python -m "
                                  "experiments.make_data --pack=ROOTS --out=DIR", pack)
     held = {}
-    for folder in sorted(glob.glob(os.path.join(str(pack), "*", PACK_INDEX))):
-        held.setdefault(_pack_index(os.path.dirname(folder)).get("entry"), os.path.dirname(folder))
+    for index in sorted(glob.glob(os.path.join(str(pack), "*", PACK_INDEX))):
+        folder = os.path.dirname(index)
+        held.setdefault(_pack_index(folder).get("entry"), folder)
     missing = [e for e in root_entries(roots) if e not in held]
     if missing:
         raise checks.ConfigError(f"config.train.pack {str(pack)!r} holds no pack of the "
                                  f"data.root entries {missing} (it holds "
                                  f"{sorted(map(str, held))})")
     return [held[e] for e in root_entries(roots)]
-
-
-def packed_origins(folders):
-    """Where the scans of pack folders came from (their ``SOURCE.json``)."""
-    return [origin for f in folders for origin in _pack_index(f)["scans"].values()]
 
 
 def _pack_index(folder):

@@ -19,8 +19,10 @@ def check_roots(config):
     allow = bool(d.get("allow_evaluation_scenes", False))
     pack = config.train.get("pack", "")
     if pack:                            # another machine: the entries are read from the pack,
-        evaluation_scenes.check_training_scans(     # which names where each scan came from
-            entries + pipeline.packed_origins(pipeline.packed_folders(d.root, pack)), allow)
+        packed = [p for f in pipeline.packed_folders(d.root, pack)      # which names where
+                  for p in pipeline.find_scans(f)]                      # each scan came from
+        evaluation_scenes.check_training_scans(
+            entries + [pipeline.scan_folder_label(p) for p in packed], allow)
         return
     evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries], allow)
     for entry in entries:
