@@ -21,5 +21,5 @@ def get_config(arg=None):
     }[size]
     c.model_kwargs.update(common.decoder_kwargs(size))
     if size == "mid":
-        common.shipped_recipe(c, steps=5000, batch_size=32)
+        common.shipped_recipe(c, steps=10000, batch_size=32)
     return c
