@@ -3,31 +3,37 @@ LEAD-PN's reconstruction, Compass's and SOUND's frame consistency) on your scans
 of minutes or steps, stopping early when the loss on held-back keypoints stops improving.
 
     python -m experiments.adapt --bundle=compass --data=SCANS --minutes=10 --workdir=runs/mine
+    python -m experiments.adapt --bundle=compass,lead --data=SCANS --minutes=10 --workdir=runs/mine
 
 ``--data``: folders or scan files (PLY, PCD, XYZ, ...), comma-separated; no pose or ground
 truth is read. The scale is chosen from the scans as ``experiments.register`` chooses it
 (``--voxel``/``--radius`` to set it). The adapted bundle is written to ``WORKDIR/bundle``, its
 model card naming the scans; ``register --method=lead@compass --bundle=WORKDIR/bundle`` uses
-it, and re-running the same command resumes. A descriptor bundle keeps its whitening
-(``--refit_whitening``: fit one on your scans instead, LEAD's ``compass`` one in the frames of
-``--compass``, e.g. a Compass adapted before). What adapting each kind measured:
-docs/training.md.
+it, and re-running the same command resumes. Several bundles (comma-separated) adapt side by
+side, each in its own process on its share of the cores, for the same minutes
+(``sphere_jax/training/side_by_side.py``), into ``WORKDIR/<kind>/bundle``: both networks of
+``lead@compass`` in the time of one (``register ... --bundle=W/compass/bundle,W/lead/bundle``).
+A descriptor bundle keeps its whitening (``--refit_whitening``: fit one on your scans instead,
+LEAD's ``compass`` one in the frames of ``--compass``, e.g. a Compass adapted before). What
+adapting each kind measured: docs/training.md.
 """
 from __future__ import annotations
+
+import os
 
 from experiments import cli
 from sphere_jax import align, api, checks, training, workdirs
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import io
 from sphere_jax.features import whitening_fit
-from sphere_jax.training import adaptation
+from sphere_jax.training import adaptation, side_by_side
 
 SCALE_SCANS = 8          # scans read to choose the scale (the first ones, in file order)
 
 
-def auto_data(bundle, roots, voxel="auto", radius="auto"):
-    """``config.data`` overrides putting ``roots``' scans at the scale ``bundle`` was trained
-    at (:func:`sphere_jax.align.auto_scale`), keypoints as dense relative to the support."""
+def auto_scale(roots, voxel="auto", radius="auto"):
+    """``(voxel, radius)`` for ``roots``' scans: each given, or chosen from the scans as
+    ``register`` chooses it (:func:`sphere_jax.align.auto_scale`)."""
     if "auto" in (voxel, radius):
         scans = pipeline.scan_paths(roots)
         if not scans:
@@ -36,14 +42,14 @@ def auto_data(bundle, roots, voxel="auto", radius="auto"):
         auto_voxel, auto_radius = align.auto_scale(*clouds)
         voxel = auto_voxel if voxel == "auto" else voxel
         radius = auto_radius if radius == "auto" else radius
-    voxel, radius = checks.positive(float(voxel), "voxel"), checks.positive(float(radius),
-                                                                             "radius")
-    return adaptation.data_at_scale(bundle, voxel, radius)
+    return (checks.positive(float(voxel), "voxel"), checks.positive(float(radius), "radius"))
 
 
 def main(argv=None):
     parser = cli.ArgumentParser(doc=__doc__)
-    parser.add_argument("--bundle", required=True, help="a bundle folder or a shipped kind")
+    parser.add_argument("--bundle", required=True,
+                        help="a bundle folder or a shipped kind; several, comma-separated, "
+                             "adapt side by side into WORKDIR/<kind>/bundle")
     parser.add_argument("--data", required=True, help="scan folders or files, comma-separated")
     parser.add_argument("--minutes", type=cli.positive_number, default=None,
                         help="wall-time budget (default 10 when --steps is not given)")
@@ -69,26 +75,44 @@ def main(argv=None):
         for name in ("minutes", "steps", "learning_rate"):
             checks.positive(getattr(args, name), name, integer=name == "steps")
         checks.non_negative(args.patience, "patience", integer=True)
-        bundle = api.load_bundle(args.bundle)
+        given = align.split_bundles(args.bundle)
+        bundles = [api.load_bundle(b) for b in given]
+        kinds = [b.kind for b in bundles]
+        if len(set(kinds)) < len(kinds):
+            raise checks.InputError("bundle", "one bundle per kind", args.bundle)
         if args.compass is not None:                # before reading any scan
             whitening_fit.frame_bundle(args.compass)
-        data = auto_data(bundle, args.data, args.voxel, args.radius)
+        voxel, radius = auto_scale(args.data, args.voxel, args.radius)
+        data = [adaptation.data_at_scale(b, voxel, radius) for b in bundles]
         workdirs.prepare(args.workdir, "--workdir")
+    budget = (f", {minutes:g} min" if minutes else "") + (
+        f", at most {args.steps} steps" if args.steps else "")
     with cli.refusals():
-        print(f"adapting {bundle.kind} on {args.data}: voxel {data['voxel']:.4g}, radius "
-              f"{data['radius']:.4g}" + (f", {minutes:g} min" if minutes else "")
-              + (f", at most {args.steps} steps" if args.steps else ""))
-        path = training.adapt(bundle, args.data, args.steps, args.workdir,
-                              args.learning_rate, data=data, minutes=minutes,
-                              patience=args.patience)
-        if args.refit_whitening:
-            whitening_fit.fit_if_descriptor(path, args.compass,
-                                            command=cli.command("experiments.adapt"))
+        if len(bundles) == 1:
+            print(f"adapting {kinds[0]} on {args.data}: voxel {voxel:.4g}, radius "
+                  f"{radius:.4g}{budget}")
+            paths = [training.adapt(bundles[0], args.data, args.steps, args.workdir,
+                                    args.learning_rate, data=data[0], minutes=minutes,
+                                    patience=args.patience)]
         else:
-            whitening_fit.keep_from(args.bundle, path)
+            shares = side_by_side.core_shares(len(bundles))
+            print(f"adapting {', '.join(kinds)} side by side on {args.data}: voxel "
+                  f"{voxel:.4g}, radius {radius:.4g}{budget}; cores "
+                  + ", ".join(f"{k} {list(c)}" for k, c in zip(kinds, shares)))
+            jobs = [(k, api.bundle_path(b), os.path.join(args.workdir, k), d)
+                    for k, b, d in zip(kinds, given, data)]
+            paths = side_by_side.adapt_side_by_side(jobs, args.data, args.steps, minutes,
+                                                    args.learning_rate, args.patience,
+                                                    shares=shares)
+        for source, path in zip(given, paths):
+            if args.refit_whitening:
+                whitening_fit.fit_if_descriptor(path, args.compass,
+                                                command=cli.command("experiments.adapt"))
+            else:
+                whitening_fit.keep_from(source, path)
     # What the bundle holds, not the last step's metrics: early stopping keeps the best weights.
-    print(f"adapted bundle in {path}: {adaptation.outcome(path)}")
-
+    for path in paths:
+        print(f"adapted bundle in {path}: {adaptation.outcome(path)}")
 
 if __name__ == "__main__":
     main()

@@ -46,7 +46,9 @@ def main(argv=None):
                              "register with confidence")
     parser.add_argument("--no-progressive", action="store_true",
                         help="describe all the keypoints at once")
-    parser.add_argument("--bundle", default=None, help="a bundle replacing the shipped one")
+    parser.add_argument("--bundle", default=None,
+                        help="a bundle replacing the shipped one of its kind; several, "
+                             "comma-separated (e.g. an adapted Compass and LEAD)")
     parser.add_argument("--adapt", type=cli.positive_number, default=None, metavar="MINUTES",
                         help="adapt the method's learned frames (Compass, SOUND) to these two "
                              "scans first, without labels (kept in OUT/adapted with --out)")
@@ -67,9 +69,8 @@ def main(argv=None):
             if cloud.dropped:
                 print(f"{path}: {cloud.dropped} of {cloud.dropped + len(cloud)} points have "
                       f"non-finite coordinates; left out", file=sys.stderr)
-        if args.bundle is not None:
-            from sphere_jax import api
-            api.load_bundle(args.bundle)
+        if args.bundle is not None:                # before the work: kinds and paths
+            align.method_bundles(registry.resolve(args.method), args.bundle)
         if args.out:                               # before the work, not after it
             workdirs.prepare(args.out, "--out")
     with cli.refusals():

@@ -170,7 +170,8 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         ``CONFIDENT_INLIERS`` RANSAC inliers (and ICP's agreement); each share describes only
         the keypoints new to it (``Registration.keypoints`` says how many were described).
         The pair vote describes all at once.
-      bundle: a bundle (folder or kind) replacing the shipped one of its kind.
+      bundle: a bundle (folder or kind) replacing the shipped one of its kind, or several (a
+        list, or comma-separated).
       icp: refine the RANSAC transform by point-to-plane ICP.
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
         failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
@@ -243,19 +244,34 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
 
 
 def method_bundles(method: registry.Method, bundle=None):
-    """Kind -> bundle path for the shipped bundles, ``bundle`` (a folder or kind) replacing
-    the one of its kind; :class:`~sphere_jax.checks.InputError` when ``method`` needs no
-    bundle of that kind, so that a bundle given is never silently left unused."""
+    """Kind -> bundle path for the shipped bundles, ``bundle`` (a folder or kind, or several:
+    a list or a comma-separated string) replacing the one of its kind;
+    :class:`~sphere_jax.checks.InputError` when ``method`` needs no bundle of that kind or two
+    are of one kind, so that a bundle given is never silently left unused."""
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
-    if bundle is not None:
+    given = split_bundles(bundle)
+    if given:
         from sphere_jax import api
-        kind = api.load_bundle(bundle).kind
-        if kind not in method.needs:
-            raise checks.InputError("bundle", f"of a kind that method {method.key!r} uses "
-                                    f"({', '.join(method.needs) or 'none: no network'})",
-                                    f"a {kind} bundle")
-        bundles[kind] = api.bundle_path(bundle)
+        kinds = [api.load_bundle(b).kind for b in given]
+        for b, kind in zip(given, kinds):
+            if kind not in method.needs:
+                raise checks.InputError("bundle", f"of a kind that method {method.key!r} uses "
+                                        f"({', '.join(method.needs) or 'none: no network'})",
+                                        f"a {kind} bundle")
+            if kinds.count(kind) > 1:
+                raise checks.InputError("bundle", "one bundle per kind", f"{kinds.count(kind)} "
+                                        f"{kind} bundles")
+            bundles[kind] = api.bundle_path(b)
     return bundles
+
+
+def split_bundles(bundle) -> list:
+    """``bundle`` as a list: None -> [], a comma-separated string -> its entries."""
+    if bundle is None:
+        return []
+    if isinstance(bundle, str):
+        return [b.strip() for b in bundle.split(",") if b.strip()]
+    return list(bundle)
 
 
 def frame_kinds(method: registry.Method) -> tuple[str, ...]:

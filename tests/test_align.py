@@ -73,6 +73,22 @@ def test_auto_scale_follows_extent_and_spacing():
         sphere_jax.register(wall, wall, min_fitness=2)       # no ICP fitness reaches it
 
 
+def test_several_bundles_replace_the_shipped_ones_of_their_kinds():
+    """``bundle="A,B"`` (or a list): each replaces the shipped bundle of its kind; two of one
+    kind, or one the method does not use, are refused before any work."""
+    lead_compass = registry.resolve("lead@compass")
+    shipped = align.method_bundles(lead_compass)
+    for given in ("compass,lead", ["lead", "compass"], " compass , lead "):
+        assert align.method_bundles(lead_compass, given) == shipped
+    with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be one bundle per kind; "
+                                                        "got 2 lead bundles"):
+        align.method_bundles(lead_compass, "lead,lead")
+    with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be of a kind that method "
+                                                        "'lead_compass' uses .lead, compass.; "
+                                                        "got a lead_pn"):
+        align.method_bundles(lead_compass, "compass,lead_pn")
+
+
 def test_a_share_of_the_keypoints_suffices_when_it_registers_with_confidence(
         pair, monkeypatch, tmp_path, capsys):
     """Progressive description: a pair that registers with confidence from a quarter of its

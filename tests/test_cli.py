@@ -127,6 +127,8 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
      "whiten: error: compass must be a bundle that orients (compass)"),
     (["experiments.adapt", "--bundle=lead", "--data=embedded:1", "--compass=lead_pn"],
      "adapt: error: compass must be a bundle that orients (compass)"),
+    (["experiments.adapt", "--bundle=lead,compass,lead", "--data=x"],
+     "adapt: error: bundle must be one bundle per kind; got lead,compass,lead"),
 ])
 def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
     """Each main's arguments (bundles, scans, files) are read before any work; a bad one is

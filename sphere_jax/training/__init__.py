@@ -5,6 +5,7 @@
 ``inputs``       the config's data source and the batch of a step
 ``checkpoints``  orbax checkpoints, resume, the workdir's claim, the bundle at the end
 ``adaptation``   a bundle adapted to unlabelled scans with its own loss
+``side_by_side`` several bundles adapted at once, each on its share of the cores
 ===============  ============================================================================
 
 Continuing a bundle at its step, or fine-tuning from its weights, is :mod:`sphere_jax.bundle`'s.

@@ -1,0 +1,112 @@
+"""Several bundles adapted at once, each in its own process on its own share of the cores.
+
+The networks one method uses (Compass and LEAD for ``lead@compass``) adapt independently, and
+much of a training step runs on one core (XLA's loops). Side by side, one core each, each
+network made about 70 % of the steps it makes with both cores to itself, where taking turns
+leaves each half of them. On the bunny's scans, 10 minutes of wall time on 2 cores: Compass
+1181 steps (1704 alone for 10 minutes, 896 for 5), LEAD 451 (664, 367), and LEAD (Compass)'s
+inlier ratio there rose 0.105 -> 0.128 (+22 %) against +5 % with 5 minutes each in turn
+(docs/training.md).
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import json
+import multiprocessing
+import os
+import time
+import typing
+
+from tqdm import tqdm
+
+from sphere_jax import bundle, model_card
+from sphere_jax.training import adaptation
+
+POLL_S = 2.0
+
+
+def usable_cores() -> list[int]:
+    """The cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return sorted(os.sched_getaffinity(0))
+    return list(range(os.cpu_count() or 1))
+
+
+def core_shares(n: int, cores=None) -> list[tuple[int, ...]]:
+    """``n`` disjoint shares of ``cores`` (default: :func:`usable_cores`), dealt round robin;
+    with fewer cores than jobs, every job gets all of them."""
+    cores = sorted(usable_cores() if cores is None else cores)
+    if len(cores) < n:
+        return [tuple(cores)] * n
+    return [tuple(cores[i::n]) for i in range(n)]
+
+
+class _Trained(typing.NamedTuple):
+    """What :func:`~sphere_jax.training.adaptation.adapt` reads of a bundle."""
+    kind: str
+    config: typing.Any
+    variables: dict
+
+
+def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data, minutes,
+              patience):
+    """One adaptation in a fresh process, pinned to ``cores`` before its first array (XLA's
+    CPU client sizes its thread pool by the cores the process may use). ``bundle_path``: a
+    bundle folder the caller has loaded once already (``sphere_jax.load_bundle`` checks it)."""
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, cores)
+    config = bundle.read_config(bundle_path)
+    trained = _Trained(config.model, config, bundle.read_variables(bundle_path))
+    return adaptation.adapt(trained, data_root, steps, workdir, learning_rate, progress=False,
+                            data=data, minutes=minutes, patience=patience)
+
+
+def _last_logged(workdir):
+    """The last line of ``workdir``'s metrics log as a dict ({} before the first)."""
+    path = os.path.join(str(workdir), model_card.METRICS)
+    try:
+        with open(path) as f:
+            lines = f.read().splitlines()
+        return json.loads(lines[-1]) if lines else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def _watch(futures, names, workdirs, minutes, progress):
+    """One progress bar over the wall-time budget, each job's step and loss beside it, until
+    every job has ended."""
+    total = 60.0 * minutes if minutes else None
+    start = time.perf_counter()
+    with tqdm(total=total, disable=not progress, desc="adapting side by side",
+              bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}{postfix}"
+              if total else "{desc}: {elapsed}{postfix}") as bar:
+        while not all(f.done() for f in futures):
+            concurrent.futures.wait(futures, timeout=POLL_S)
+            shown = []
+            for name, workdir, future in zip(names, workdirs, futures):
+                last = _last_logged(workdir)
+                state = "done" if future.done() else f"step {last.get('step', 0)}"
+                loss = "".join(f", {label} {last[key]:.4g}" for key, label in
+                               (("loss", "loss"), ("val_loss", "validation")) if key in last)
+                shown.append(f"{name} {state}{loss}")
+            bar.n = min(time.perf_counter() - start, total) if total else 0
+            bar.set_postfix_str(" | ".join(shown))
+
+
+def adapt_side_by_side(jobs, data_root, steps=None, minutes=None, learning_rate=None,
+                       patience=adaptation.PATIENCE, progress=True, shares=None) -> list[str]:
+    """:func:`~sphere_jax.training.adaptation.adapt` for each of ``jobs`` — ``(name, bundle
+    folder, workdir, data overrides)`` — at the same time, each in a process of its own on its
+    share of the cores (``shares``, default :func:`core_shares`), with the same ``steps`` /
+    ``minutes`` budget. Returns the adapted bundles' paths in the order of ``jobs``; a job
+    that failed raises its error once all have ended (the others' bundles are written)."""
+    shares = core_shares(len(jobs)) if shares is None else shares
+    # spawn: a fresh interpreter per job; a forked JAX runtime is not safe to use.
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(len(jobs), mp_context=context,
+                                                max_tasks_per_child=1) as pool:
+        futures = [pool.submit(_adapt_on, share, path, data_root, steps, workdir,
+                               learning_rate, data, minutes, patience)
+                   for share, (_, path, workdir, data) in zip(shares, jobs)]
+        _watch(futures, [j[0] for j in jobs], [j[2] for j in jobs], minutes, progress)
+    return [f.result() for f in futures]

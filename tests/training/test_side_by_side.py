@@ -1,0 +1,54 @@
+"""Several bundles adapted side by side: the cores they share, the bundles they write."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from sphere_jax import bundle, paths
+from sphere_jax.data import demo
+from sphere_jax.training import adaptation, side_by_side
+
+
+def test_core_shares_are_disjoint_until_there_are_too_few_cores():
+    assert side_by_side.core_shares(2, [0, 1]) == [(0,), (1,)]
+    shares = side_by_side.core_shares(3, range(16))
+    assert sorted(c for s in shares for c in s) == list(range(16))
+    assert [len(s) for s in shares] == [6, 5, 5]
+    # more jobs than cores: each job may use every core (the OS shares them)
+    assert side_by_side.core_shares(3, [4, 5]) == [(4, 5)] * 3
+    assert side_by_side.core_shares(1) == [tuple(side_by_side.usable_cores())]
+
+
+@pytest.mark.slow
+def test_two_bundles_adapt_side_by_side_into_their_own_workdirs(tmp_path):
+    """Compass and LEAD for a few steps each on two real scans (a synthetic pair without the
+    data), each in its own process: both bundles written, each recording the two scans, each
+    log starting from its bundle's validation loss."""
+    (src, dst), _ = demo.fragment_pair()
+    scans = []
+    for name, points in (("a", src), ("b", dst)):
+        scans.append(str(tmp_path / f"{name}.npy"))
+        np.save(scans[-1], points)
+    jobs = [(kind, paths.shipped_bundle(kind), str(tmp_path / kind), None)
+            for kind in ("compass", "lead")]
+    adapted = side_by_side.adapt_side_by_side(jobs, ",".join(scans), steps=2, progress=False)
+    assert adapted == [os.path.join(str(tmp_path / k), "bundle") for k in ("compass", "lead")]
+    for kind, path in zip(("compass", "lead"), adapted):
+        assert bundle.read_config(path).model == kind
+        assert bundle.read_config(path).train.steps_done == 2
+        with open(os.path.join(path, "training_data.json")) as f:
+            assert sum(json.load(f)["folders"].values()) == 2       # the two scans, no more
+        assert "(2 scans)" in open(os.path.join(path, "MODEL_CARD.md")).read()
+        assert adaptation.outcome(path).startswith(f"{kind}: 2 steps, validation loss")
+
+
+def test_a_failed_job_raises_its_error_after_the_others_end(tmp_path):
+    """A refusal inside a job (here: no scans where the data root points) comes back to the
+    caller as the project's own error, not a broken pool."""
+    from sphere_jax import checks
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    jobs = [("lead", paths.shipped_bundle("lead"), str(tmp_path / "lead"), None)]
+    with pytest.raises(checks.SphereJaxError):
+        side_by_side.adapt_side_by_side(jobs, str(empty), steps=1, progress=False)
