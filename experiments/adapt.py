@@ -114,5 +114,6 @@ def main(argv=None):
     for path in paths:
         print(f"adapted bundle in {path}: {adaptation.outcome(path)}")
 
+
 if __name__ == "__main__":
     main()
