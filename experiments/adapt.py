@@ -76,6 +76,9 @@ def main(argv=None):
             checks.positive(getattr(args, name), name, integer=name == "steps")
         checks.non_negative(args.patience, "patience", integer=True)
         given = align.split_bundles(args.bundle)
+        if not given:
+            raise checks.InputError("bundle", "a bundle folder or kind, or several "
+                                    "comma-separated", repr(args.bundle))
         bundles = [api.load_bundle(b) for b in given]
         kinds = [b.kind for b in bundles]
         if len(set(kinds)) < len(kinds):

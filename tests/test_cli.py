@@ -127,6 +127,9 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
      "whiten: error: compass must be a bundle that orients (compass)"),
     (["experiments.adapt", "--bundle=lead", "--data=embedded:1", "--compass=lead_pn"],
      "adapt: error: compass must be a bundle that orients (compass)"),
+    (["experiments.adapt", "--bundle=,", "--data=x"],
+     "adapt: error: bundle must be a bundle folder or kind, or several comma-separated; "
+     "got ','"),
     (["experiments.adapt", "--bundle=lead,compass,lead", "--data=x"],
      "adapt: error: bundle must be one bundle per kind; got lead,compass,lead"),
 ])
