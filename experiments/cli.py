@@ -4,7 +4,8 @@ compilation cache (:mod:`sphere_jax.compile_cache`: a second run does not compil
 A bad flag, an unknown config, an unknown config field or a value the run cannot use is one
 line (``train: error: ...``) and exit status 2, before any work starts; another refusal of
 the project's (:class:`sphere_jax.SphereJaxError`: a corrupt file, a non-finite loss) is one
-line and status 1. Anything else is a bug and keeps its traceback.
+line and status 1; Ctrl-C is one line and status 130. Anything else is a bug and keeps its
+traceback.
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from configs import resolve_config_arg
 from sphere_jax import checks, compile_cache
 
 USAGE = 2
+INTERRUPTED = 130
 
 
 def _main_name() -> str:
@@ -65,7 +67,8 @@ def run(main):
 @contextlib.contextmanager
 def refusals(arguments=False):
     """The project's refusals inside as one line: bad usage, input or config values exit 2,
-    any other :class:`~sphere_jax.SphereJaxError` 1 (the argparse mains use it directly).
+    any other :class:`~sphere_jax.SphereJaxError` 1 (the argparse mains use it directly), and
+    Ctrl-C one line and 130 (the shell's status for SIGINT).
     ``arguments``: the block only reads what the command line names (bundles, scans, files),
     so every refusal there is the command line's: exit 2."""
     try:
@@ -74,6 +77,11 @@ def refusals(arguments=False):
         fail(e)
     except checks.SphereJaxError as e:
         fail(e, USAGE if arguments else 1)
+    except KeyboardInterrupt:
+        # What was saved stays saved; the resuming mains go on from it.
+        print(f"{_main_name()}: interrupted (train, evaluate and adapt go on from their last "
+              f"checkpoint or result when the same command runs again)", file=sys.stderr)
+        sys.exit(INTERRUPTED)
 
 
 def _number(parse, ok, what):

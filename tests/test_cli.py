@@ -7,6 +7,8 @@ import sys
 
 import pytest
 
+from experiments import cli
+
 # Every case starts a fresh interpreter (JAX, flax, open3d): ~5 s each.
 pytestmark = pytest.mark.slow
 
@@ -190,3 +192,14 @@ def test_train_writes_a_whitened_bundle_with_its_card(tmp_path):
     assert statement["default"]["command"].startswith("python -m experiments.train ")
     assert "descriptor whitening `default`" in (tmp_path / "w" / "bundle" /
                                                 "MODEL_CARD.md").read_text()
+
+
+def test_ctrl_c_is_one_line_and_status_130(capsys):
+    """An interrupted main says so in one line (no traceback) and exits 130, as the shell
+    reports SIGINT."""
+    with pytest.raises(SystemExit) as stopped:
+        with cli.refusals():
+            raise KeyboardInterrupt
+    assert stopped.value.code == 130
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted" in lines[0] and "same command" in lines[0]
