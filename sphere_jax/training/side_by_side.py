@@ -74,23 +74,28 @@ def _last_logged(workdir):
 
 def _watch(futures, names, workdirs, minutes, progress):
     """One progress bar over the wall-time budget, each job's step and loss beside it, until
-    every job has ended."""
+    every job has ended. The budget's clock starts with the first job's first log line (its
+    starting validation loss), as the jobs' own budgets do after reading the scans."""
     total = 60.0 * minutes if minutes else None
-    start = time.perf_counter()
+    started = None
     with tqdm(total=total, disable=not progress, desc="adapting side by side",
-              bar_format="{desc}: {percentage:3.0f}%|{bar}| {elapsed}{postfix}"
-              if total else "{desc}: {elapsed}{postfix}") as bar:
+              bar_format="{desc} {percentage:3.0f}%|{bar}|" if total else "{desc}") as bar:
         while not all(f.done() for f in futures):
             concurrent.futures.wait(futures, timeout=POLL_S)
             shown = []
             for name, workdir, future in zip(names, workdirs, futures):
                 last = _last_logged(workdir)
-                state = "done" if future.done() else f"step {last.get('step', 0)}"
+                state = ("done" if future.done() else f"step {last['step']}" if last
+                         else "reading the scans")
                 loss = "".join(f", {label} {last[key]:.4g}" for key, label in
                                (("loss", "loss"), ("val_loss", "validation")) if key in last)
                 shown.append(f"{name} {state}{loss}")
-            bar.n = min(time.perf_counter() - start, total) if total else 0
-            bar.set_postfix_str(" | ".join(shown))
+                if last and started is None:
+                    started = time.perf_counter()
+            elapsed = time.perf_counter() - started if started else 0.0
+            bar.n = min(elapsed, total) if total else 0
+            clock = f"{int(elapsed // 60)}:{int(elapsed % 60):02d}"
+            bar.set_description_str(f"adapting side by side, {clock}: " + " | ".join(shown))
 
 
 def adapt_side_by_side(jobs, data_root, steps=None, minutes=None, learning_rate=None,
