@@ -168,6 +168,20 @@ def adaptation_line(kind, path) -> str:
               f"{config.data.radius:g} (`{path}`)")
 
 
+def budgets(kinds: dict) -> str:
+    """The adapted bundles' time budgets for a title: ``, 10 min each`` or ``, compass 10 min,
+    lead 5 min``; empty when none had one (a step count decided)."""
+    from sphere_jax import bundle
+    minutes = {k: float(bundle.read_config(p).train.get("time_budget_s", 0) or 0) / 60
+               for k, p in sorted(kinds.items())}
+    if not any(minutes.values()):
+        return ""
+    if len(set(minutes.values())) == 1:
+        return f", {next(iter(minutes.values())):g} min" + (" each" if len(minutes) > 1 else "")
+    return ", " + ", ".join(f"{k} {m:g} min" if m else f"{k} by steps"
+                            for k, m in minutes.items())
+
+
 def adaptation_section(before_dir, after_dir) -> str:
     """A run with the shipped bundles against the same run with adapted ones (registration:
     inlier ratio, correct matches, RR; LRF: repeatability, mean angle), method by method, and
@@ -199,7 +213,8 @@ def adaptation_section(before_dir, after_dir) -> str:
         title = title[0].lower() + title[1:]
     names = sorted(kinds)
     listed = " and ".join(filter(None, [", ".join(names[:-1]), names[-1]])) if names else "none"
-    return (f"## Adaptation without labels, {listed} adapted: {title} on {data_of(after)}"
+    return (f"## Adaptation without labels, {listed} adapted{budgets(kinds)}: {title} on "
+            f"{data_of(after)}"
             f"\n\nBefore: `{before.get('command')}`\n\nAfter: `{after.get('command')}`\n\n"
             f"Adapted bundles (no pose or ground truth read): " + "; ".join(adapted)
             + f". Runs {before['date']} and {after['date']}.\n\n" + "\n".join(out) + "\n")

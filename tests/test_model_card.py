@@ -157,6 +157,23 @@ def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tm
     assert ("compass: 240 steps, 2.0 min of them (budget 10), weights of step 200, on "
             "`/scans/mine` at voxel 0.001, radius 0.015") in text
     assert "Before: `evaluate before`" in text and "After: `evaluate after`" in text
+    assert text.startswith("## Adaptation without labels, compass adapted, 10 min: ")
+
+
+def test_an_adaptation_title_names_the_budgets(tmp_path):
+    """Two adaptations of the same networks differ by their minutes: the title says them."""
+    saved = {}
+    for kind, budget_s in (("compass", 600.0), ("lead", 300.0), ("sound", 0.0)):
+        saved[kind] = tmp_path / kind
+        bundle.save(saved[kind], ml_collections.ConfigDict({
+            "model": kind, "data": {"root": "x"},
+            "train": {"steps": 500, "time_budget_s": budget_s, "batch_size": 2}}),
+            {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
+    pick = lambda *kinds: {k: str(saved[k]) for k in kinds}
+    assert publish.budgets(pick("compass")) == ", 10 min"
+    assert publish.budgets(pick("compass", "lead")) == ", compass 10 min, lead 5 min"
+    assert publish.budgets(pick("sound")) == ""
+    assert publish.budgets(pick("lead", "sound")) == ", lead 5 min, sound by steps"
 
 
 def test_a_minutes_budget_card_has_no_step_total_and_names_the_constant_rate(tmp_path):
