@@ -11,7 +11,6 @@ and +22 %) against +5 % with 5 minutes each in turn (docs/training.md).
 from __future__ import annotations
 
 import concurrent.futures
-import json
 import multiprocessing
 import os
 import time
@@ -63,13 +62,11 @@ def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data
 
 def _last_logged(workdir):
     """The last line of ``workdir``'s metrics log as a dict ({} before the first)."""
-    path = os.path.join(str(workdir), model_card.METRICS)
     try:
-        with open(path) as f:
-            lines = f.read().splitlines()
-        return json.loads(lines[-1]) if lines else {}
-    except (OSError, ValueError):
+        lines = model_card.read_metrics(os.path.join(str(workdir), model_card.METRICS))
+    except ValueError:                     # read while the job writes its last line
         return {}
+    return lines[-1] if lines else {}
 
 
 def _watch(futures, names, workdirs, minutes, progress):
