@@ -80,9 +80,7 @@ def main(argv=None):
             raise checks.InputError("bundle", "a bundle folder or kind, or several "
                                     "comma-separated", repr(args.bundle))
         bundles = [api.load_bundle(b) for b in given]
-        kinds = [b.kind for b in bundles]
-        if len(set(kinds)) < len(kinds):
-            raise checks.InputError("bundle", "one bundle per kind", args.bundle)
+        kinds = align.one_per_kind([b.kind for b in bundles])
         if args.compass is not None:                # before reading any scan
             whitening_fit.frame_bundle(args.compass)
         voxel, radius = auto_scale(args.data, args.voxel, args.radius)

@@ -252,15 +252,12 @@ def method_bundles(method: registry.Method, bundle=None):
     given = split_bundles(bundle)
     if given:
         from sphere_jax import api
-        kinds = [api.load_bundle(b).kind for b in given]
+        kinds = one_per_kind([api.load_bundle(b).kind for b in given])
         for b, kind in zip(given, kinds):
             if kind not in method.needs:
                 raise checks.InputError("bundle", f"of a kind that method {method.key!r} uses "
                                         f"({', '.join(method.needs) or 'none: no network'})",
                                         f"a {kind} bundle")
-            if kinds.count(kind) > 1:
-                raise checks.InputError("bundle", "one bundle per kind", f"{kinds.count(kind)} "
-                                        f"{kind} bundles")
             bundles[kind] = api.bundle_path(b)
     return bundles
 
@@ -272,6 +269,17 @@ def split_bundles(bundle) -> list:
     if isinstance(bundle, str):
         return [b.strip() for b in bundle.split(",") if b.strip()]
     return list(bundle)
+
+
+def one_per_kind(kinds: list) -> list:
+    """``kinds`` (of the bundles given as ``bundle``), or
+    :class:`~sphere_jax.checks.InputError` when two are of one kind: which one would be used
+    is not the user's to guess."""
+    for kind in kinds:
+        if kinds.count(kind) > 1:
+            raise checks.InputError("bundle", "one bundle per kind",
+                                    f"{kinds.count(kind)} {kind} bundles")
+    return kinds
 
 
 def frame_kinds(method: registry.Method) -> tuple[str, ...]:

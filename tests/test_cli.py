@@ -133,7 +133,7 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
      "adapt: error: bundle must be a bundle folder or kind, or several comma-separated; "
      "got ','"),
     (["experiments.adapt", "--bundle=lead,compass,lead", "--data=x"],
-     "adapt: error: bundle must be one bundle per kind; got lead,compass,lead"),
+     "adapt: error: bundle must be one bundle per kind; got 2 lead bundles"),
 ])
 def test_the_argparse_mains_refuse_in_one_line_with_status_2(args, message, tmp_path):
     """Each main's arguments (bundles, scans, files) are read before any work; a bad one is
