@@ -34,6 +34,9 @@ README = os.path.join(REPO, "README.md")
 HEADLINE = (("fmr", "FMR", "{:.2f}"), ("inlier_ratio", "inlier ratio", "{:.3f}"),
             ("n_correct", "correct / pair", "{:.0f}"), ("rr", "RR", "{:.2f}"),
             ("ms_per_keypoint", "ms / keypoint", "{:.2f}"))
+# A description time measured while other processes used more than this share of the cores
+# is marked as shared (sphere_jax/eval/timing.py).
+SHARED = 0.1
 
 
 def stem_of(record) -> str:
@@ -88,6 +91,7 @@ def headline_table(run_dir) -> str:
     rows = report.read_means(run_dir, "results").values()
     out = ["| method | " + " | ".join(h for _, h, _ in HEADLINE) + " |",
            "|---" * (len(HEADLINE) + 1) + "|"]
+    shared = False
     for r in rows:
         cells = []
         for key, _, fmt in HEADLINE:
@@ -95,8 +99,24 @@ def headline_table(run_dir) -> str:
                 cells.append(fmt.format(float(r[key])))
             except (TypeError, ValueError):
                 cells.append("")
+        others = _number(r.get("others_cpu"))
+        ms = [key for key, _, _ in HEADLINE].index("ms_per_keypoint")
+        if others is not None and others > SHARED and cells[ms]:
+            cells[ms] += f" (shared {others:.0%})"
+            shared = True
         out.append(f"| {r['method']} | " + " | ".join(cells) + " |")
+    if shared:
+        out += ["", "shared N %: other processes used N % of the cores while the method "
+                "described, so its time is longer than alone."]
     return "\n".join(out)
+
+
+def _number(text) -> float | None:
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return None
+    return value if value == value else None       # NaN: not recorded
 
 
 def diagnostic(record) -> bool:

@@ -6,7 +6,7 @@ import numpy as np
 from experiments.benchmarks import describe
 
 KEYS = {"method", "ms_per_keypoint", "gflop_per_keypoint", "gflop_per_s", "peak_fraction",
-        "peak_rss_gb", "register_s", "register_warm_s"}
+        "peak_rss_gb", "register_s", "register_warm_s", "others_cpu"}
 
 
 @pytest.mark.slow
@@ -15,6 +15,7 @@ def test_records_of_a_hand_crafted_method():
     assert KEYS <= set(rec) and rec["method"] == "fpfh"
     assert rec["gflop_per_keypoint"] is None and rec["peak_fraction"] is None
     assert rec["ms_per_keypoint"] > 0 and rec["peak_rss_gb"] > 0.1
+    assert rec["others_cpu"] is None or 0 <= rec["others_cpu"] <= 1
     assert rec["register_stages"]["load"] >= 0 and rec["register_s"] > 0
     assert rec["register_warm_s"] > 0
     # register describes a quarter of 200 keypoints first, then half, then all

@@ -12,7 +12,7 @@ import pytest
 from configs import eval_registration, lead
 from experiments import publish, standing
 from sphere_jax import bundle, model_card, training
-from sphere_jax.eval import tasks
+from sphere_jax.eval import report, tasks
 
 README = "# x\n\nabove\n\n<!-- headline:begin -->\nold\n<!-- headline:end -->\n\nbelow\n"
 
@@ -356,3 +356,20 @@ def test_a_stamp_names_which_weights_and_whether_results_were_reused():
     record["resumed"] = True
     assert "reusing the results an earlier run of it kept, the rest in 2 min" in \
         publish.stamp(record)
+
+
+def test_the_headline_marks_a_time_measured_beside_other_processes(tmp_path):
+    rows = [dict(method="fpfh", scene="mean", pairs=4, fmr=0.5, inlier_ratio=0.1, n_correct=20,
+                 rre_deg=1.0, rte_m=0.01, ms_per_keypoint=0.05, others_cpu=0.02, rr=0.5),
+            dict(method="lead", scene="mean", pairs=4, fmr=0.75, inlier_ratio=0.2,
+                 n_correct=40, rre_deg=1.0, rte_m=0.01, ms_per_keypoint=4.5, others_cpu=0.46,
+                 rr=0.75),
+            dict(method="shot", scene="mean", pairs=4, fmr=0.75, inlier_ratio=0.2,
+                 n_correct=40, rre_deg=1.0, rte_m=0.01, ms_per_keypoint=0.3,
+                 others_cpu=float("nan"), rr=0.75)]
+    (tmp_path / "results.csv").write_text(report.to_csv(rows, report.REGISTRATION_COLUMNS))
+    table = publish.headline_table(str(tmp_path))
+    assert "| lead | 0.75 | 0.200 | 40 | 0.75 | 4.50 (shared 46%) |" in table
+    assert "| fpfh | 0.50 | 0.100 | 20 | 0.50 | 0.05 |" in table        # alone
+    assert "| shot | 0.75 | 0.200 | 40 | 0.75 | 0.30 |" in table        # not recorded
+    assert "other processes used N % of the cores" in table

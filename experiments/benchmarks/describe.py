@@ -8,6 +8,8 @@ real scans) at ``--keypoints`` keypoints:
 * ``gflop_per_keypoint``: XLA's cost analysis of the jitted networks it runs, per patch (the
   hand-crafted methods run no XLA: null), ``gflop_per_s`` what that achieves and
   ``peak_fraction`` its share of this run's float32 matmul rate (both cores);
+* ``others_cpu``: the share of the cores other processes used during that pass
+  (:mod:`sphere_jax.eval.timing`; above 0.1 the time is not the method's alone);
 * ``peak_rss_gb``: the process's peak resident memory;
 * ``register_s``: :func:`sphere_jax.register` end to end on one real pair (redkitchen 5 → 0),
   cold (compilation included, as a user's first call), its stages in ``register_stages``
@@ -162,6 +164,7 @@ def register_time(method, keypoints, files):
 def measure(method, keypoints):
     """The record of one method (run in a fresh process by :func:`run`)."""
     from sphere_jax import paths
+    from sphere_jax.eval import timing
     from sphere_jax.features import methods
     frag, files = fragments(keypoints)
     register_s, result, load_s = register_time(method, keypoints, files)
@@ -170,14 +173,15 @@ def measure(method, keypoints):
     # A first pass over the same keypoints: compiled programs, and the one-time costs of a
     # first large call (a first SHOT pass took 0.89 ms per keypoint, the next 0.23).
     describe(frag)
-    t0 = time.perf_counter()
-    describe(frag)
-    ms = 1e3 * (time.perf_counter() - t0) / len(frag.keypoints)
+    with timing.Stopwatch() as watch:
+        describe(frag)
+    ms = 1e3 * watch.seconds / len(frag.keypoints)
     rng = np.random.default_rng(0)
     patches = (rng.normal(size=(256, 1225, 3)) * 0.4).astype(np.float32)
     gflop = _flops(method, patches)
     rss_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2
     return {"method": method, "keypoints": len(frag.keypoints), "ms_per_keypoint": round(ms, 3),
+            "others_cpu": None if watch.others is None else round(watch.others, 3),
             "gflop": gflop, "peak_rss_gb": round(rss_gb, 2), "register_s": round(register_s, 1),
             "register_ok": result.ok,
             # register describes a share of the keypoints first (align.PROGRESSIVE_SHARES)

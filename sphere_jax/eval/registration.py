@@ -19,14 +19,13 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
-import time
 from typing import Callable
 
 import jax
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax.eval import processes, report, resume, tasks
+from sphere_jax.eval import processes, report, resume, tasks, timing
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.features import methods as method_lib
 from sphere_jax.features import voted
@@ -97,6 +96,7 @@ class SceneResult:
     pairs: list
     summary: dict
     ms_per_keypoint: float
+    others_cpu: float | None = None    # the cores' share other processes used (timing.py)
 
 
 def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
@@ -129,20 +129,24 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
         if kept[name] is not None:
             results.append(kept[name])
             continue
-        start = time.perf_counter()
-        inputs, n_described, votes = _pair_descriptors(name, describe, frags, pair_set,
-                                                       progress, agree, screen)
-        ms = 1000.0 * (time.perf_counter() - start) / max(n_described, 1)
+        with timing.Stopwatch() as watch:
+            inputs, n_described, votes = _pair_descriptors(name, describe, frags, pair_set,
+                                                           progress, agree, screen)
+        ms = 1000.0 * watch.seconds / max(n_described, 1)
         rows = [dict(pair=(i, j), **match_pair(frags[i], frags[j], *inputs[(i, j)], t, tau1,
                                                ransac_distance, ransac_iterations, seed,
                                                rte_ok),
                      **_vote_row(votes.get((i, j)), t))
                 for (i, j), t in pair_set.transforms.items()]
         results.append(SceneResult(name, pair_set.name, rows,
-                                   summarise(rows, tau1, tau2, rte_ok), ms))
+                                   summarise(rows, tau1, tau2, rte_ok), ms, watch.others))
         if finished is not None:
             finished.put(results[-1])
     return results
+
+
+def _share(others):
+    return float("nan") if others is None else float(others)
 
 
 def _vote_row(vote, t_gt):
@@ -253,7 +257,8 @@ def run(config, workdir, progress=True):
     if results is None:                       # another process writes the tables
         return [], ""
     rows = [dict(method=r.method, scene=r.scene, ms_per_keypoint=r.ms_per_keypoint,
-                 **r.summary) for r in results]
+                 others_cpu=_share(getattr(r, "others_cpu", None)), **r.summary)
+            for r in results]     # results kept before others_cpu existed lack it
     os.makedirs(workdir, exist_ok=True)
     variant = " (rotated)" if config.rotate else ""
     tables = report.titled(report.REGISTRATION_TABLES, tau1=config.tau1, tau2=config.tau2,

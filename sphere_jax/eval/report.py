@@ -11,7 +11,7 @@ import numpy as np
 from sphere_jax.data.readers.io import atomic_write
 
 REGISTRATION_COLUMNS = ("method", "scene", "pairs", "fmr", "inlier_ratio", "n_correct",
-                        "rre_deg", "rte_m", "ms_per_keypoint", "rr")
+                        "rre_deg", "rte_m", "ms_per_keypoint", "others_cpu", "rr")
 LRF_COLUMNS = ("method", "scene", "pairs", "rep", "mean_angle_deg")
 # Titles are templates: ``{tau1}``, ``{tau2}``, ``{rho}``... are the run's own settings
 # (:func:`titled`).
@@ -23,7 +23,9 @@ REGISTRATION_TABLES = (("fmr", "Feature-match recall (τ1 = {tau1:g} m, τ2 = {t
                         "{:.3f}"),
                        ("rre_deg", "RRE of registered pairs (degrees)", "{:.2f}"),
                        ("rte_m", "RTE of registered pairs (m)", "{:.3f}"),
-                       ("ms_per_keypoint", "Description time (ms per keypoint)", "{:.3f}"))
+                       ("ms_per_keypoint", "Description time (ms per keypoint)", "{:.3f}"),
+                       ("others_cpu", "Share of the cores other processes used while it "
+                        "described (– : not recorded)", "{:.2f}"))
 LRF_TABLES = (("rep", "LRF repeatability (ρ = {rho:.2f})", "{:.3f}"),
               ("mean_angle_deg", "Mean angle between corresponding LRFs (degrees)", "{:.1f}"))
 
