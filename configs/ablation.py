@@ -65,7 +65,9 @@ def get_config(arg=None):
                        features=(40, 40, 40, 1))
         v.K = _variant("3 SO(3) at 16,12,8, 20 ch", bandwidths=(24, 16, 12, 8, 4),
                        features=(20, 20, 20, 1))
-        v.M = _variant("'mid': F with the signal at B = 16", bandwidths=(16, 12, 8, 6, 4),
+        v.M = _variant("F with the signal at B = 16", bandwidths=(16, 12, 8, 6, 4),
+                       features=(40, 40, 40, 1))
+        v.N = _variant("'mid': M with the SO(3) layers at 8,8,6", bandwidths=(16, 8, 8, 6, 4),
                        features=(40, 40, 40, 1))
         v.P = _variant("2 SO(3) at 8,6, 40 ch", bandwidths=(16, 8, 6, 4),
                        features=(40, 40, 1))

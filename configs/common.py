@@ -6,7 +6,8 @@ import ml_collections
 from sphere_jax import checks
 
 # 'mid' sits between: the seed's ablation (Table 4.5) kept 0.922 of the best LEAD recall with
-# three SO(3) layers at input bandwidths 12, 8, 6 (its configuration F) at 0.64 of the time, and
+# three SO(3) layers at input bandwidths 12, 8, 6 (its configuration F) at 0.64 of the time
+# (the shipped LEAD reads 8, 8, 6: its first grid is 16³, not 24³; configs/lead.py), and
 # a repeatable frame needs finer cells than B = 8's 22.5° (both axes within 14° at rho = 0.97),
 # so Compass decides at B = 12 (15° cells, refined by the soft-argmax): deciding at B = 8 halves
 # its time and loses 22 % of its repeatability (docs/performance.md).
