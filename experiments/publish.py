@@ -91,6 +91,7 @@ def headline_table(run_dir) -> str:
     rows = report.read_means(run_dir, "results").values()
     out = ["| method | " + " | ".join(h for _, h, _ in HEADLINE) + " |",
            "|---" * (len(HEADLINE) + 1) + "|"]
+    ms = [key for key, _, _ in HEADLINE].index("ms_per_keypoint")
     shared = False
     for r in rows:
         cells = []
@@ -100,7 +101,6 @@ def headline_table(run_dir) -> str:
             except (TypeError, ValueError):
                 cells.append("")
         others = _number(r.get("others_cpu"))
-        ms = [key for key, _, _ in HEADLINE].index("ms_per_keypoint")
         if others is not None and others > SHARED and cells[ms]:
             cells[ms] += f" (shared {others:.0%})"
             shared = True

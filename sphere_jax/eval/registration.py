@@ -145,10 +145,6 @@ def evaluate_scene(pair_set: scene_lib.PairSet, describers: dict[str, Callable],
     return results
 
 
-def _share(others):
-    return float("nan") if others is None else float(others)
-
-
 def _vote_row(vote, t_gt):
     if vote is None:
         return {}
@@ -256,9 +252,10 @@ def run(config, workdir, progress=True):
     results = processes.gather(mine, workdir, "registration")
     if results is None:                       # another process writes the tables
         return [], ""
+    # A result kept before others_cpu existed reads the field's default, None: "not recorded".
     rows = [dict(method=r.method, scene=r.scene, ms_per_keypoint=r.ms_per_keypoint,
-                 others_cpu=_share(getattr(r, "others_cpu", None)), **r.summary)
-            for r in results]     # results kept before others_cpu existed lack it
+                 others_cpu=float("nan") if r.others_cpu is None else r.others_cpu,
+                 **r.summary) for r in results]
     os.makedirs(workdir, exist_ok=True)
     variant = " (rotated)" if config.rotate else ""
     tables = report.titled(report.REGISTRATION_TABLES, tau1=config.tau1, tau2=config.tau2,
