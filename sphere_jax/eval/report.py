@@ -12,6 +12,8 @@ from sphere_jax.data.readers.io import atomic_write
 
 REGISTRATION_COLUMNS = ("method", "scene", "pairs", "fmr", "inlier_ratio", "n_correct",
                         "rre_deg", "rte_m", "ms_per_keypoint", "others_cpu", "rr")
+# Columns that measure the machine rather than the method: two runs of one config differ here.
+TIMING_COLUMNS = ("ms_per_keypoint", "others_cpu")
 LRF_COLUMNS = ("method", "scene", "pairs", "rep", "mean_angle_deg")
 # Titles are templates: ``{tau1}``, ``{tau2}``, ``{rho}``... are the run's own settings
 # (:func:`titled`).

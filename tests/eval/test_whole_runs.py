@@ -144,8 +144,8 @@ def test_a_killed_evaluation_redoes_only_what_it_had_not_finished(tmp_path, monk
     assert set(calls) == {"shot"}                            # fpfh was kept
     record = lambda run: json.loads((tmp_path / run / "run.json").read_text())
     assert record("cut")["resumed"] and not record("whole")["resumed"]
-    timings = ("ms_per_keypoint", "others_cpu")
-    strip = lambda rows: [{k: v for k, v in r.items() if k not in timings} for r in rows]
+    strip = lambda rows: [{k: v for k, v in r.items() if k not in report.TIMING_COLUMNS}
+                          for r in rows]
     assert strip(_read_csv(tmp_path / "cut" / "results.csv")) == \
         strip(_read_csv(tmp_path / "whole" / "results.csv"))
     calls.clear()
