@@ -13,6 +13,7 @@ from __future__ import annotations
 import concurrent.futures
 import multiprocessing
 import os
+import threading
 import time
 import typing
 
@@ -47,11 +48,27 @@ class _Trained(typing.NamedTuple):
     variables: dict
 
 
+def exit_with_parent(poll_s=POLL_S):
+    """End this process soon after its parent ends. A job whose parent was killed (``kill``,
+    out of memory: Ctrl-C reaches the whole process group, a signal to one process does not)
+    would go on adapting for its whole budget, into the workdir that rerunning the command
+    resumes from, beside the rerun's own job."""
+    parent = os.getppid()
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(poll_s)
+        os._exit(1)            # no cleanup to run: the workdir keeps its last checkpoint
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data, minutes,
               patience):
     """One adaptation in a fresh process, pinned to ``cores`` before its first array (XLA's
     CPU client sizes its thread pool by the cores the process may use). ``bundle_path``: a
     bundle folder the caller has loaded once already (``sphere_jax.load_bundle`` checks it)."""
+    exit_with_parent()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, cores)
     config = bundle.read_config(bundle_path)

@@ -1,6 +1,10 @@
 """Several bundles adapted side by side: the cores they share, the bundles they write."""
 import json
 import os
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -52,3 +56,33 @@ def test_a_failed_job_raises_its_error_after_the_others_end(tmp_path):
     jobs = [("lead", paths.shipped_bundle("lead"), str(tmp_path / "lead"), None)]
     with pytest.raises(checks.SphereJaxError):
         side_by_side.adapt_side_by_side(jobs, str(empty), steps=1, progress=False)
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="reads /proc")
+def test_a_job_ends_soon_after_its_parent_is_killed():
+    """A parent that starts a job and is then killed (SIGKILL: nothing of it runs after) does
+    not leave the job running: the job, asleep for a minute, is gone within seconds."""
+    child = ("import sys, time; from sphere_jax.training import side_by_side; "
+             "side_by_side.exit_with_parent(0.1); print('ready', flush=True); time.sleep(60)")
+    parent = ("import subprocess, sys; "
+              f"p = subprocess.Popen([sys.executable, '-c', {child!r}], stdout=sys.stdout); "
+              "print(p.pid, flush=True); p.wait()")
+    proc = subprocess.Popen([sys.executable, "-c", parent], stdout=subprocess.PIPE, text=True,
+                            cwd=os.path.dirname(os.path.dirname(os.path.dirname(__file__))))
+    job = int(proc.stdout.readline())
+    assert proc.stdout.readline().strip() == "ready"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and _alive(job):
+        time.sleep(0.1)
+    assert not _alive(job)
+
+
+def _alive(pid):
+    """Whether ``pid`` runs (a zombie, ended but not reaped, counts as ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
