@@ -200,7 +200,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         able = [m.name for m in registry.METHODS if m.kind != "diagnostic" and frame_kinds(m)]
         why = ("which has no network to adapt" if not chosen.learned else
                "whose frames are not learned (adapting its descriptor raised its inlier ratio "
-               "but mostly cost 5-11 % of its correct matches: docs/training.md; "
+               "but mostly cost 3-11 % of its correct matches: docs/training.md; "
                "experiments.adapt does it)")
         raise checks.InputError("adapt", f"used with a method whose frames are learned "
                                 f"({', '.join(able)})", f"method {chosen.name!r}, {why}")
@@ -285,8 +285,8 @@ def one_per_kind(kinds: list) -> list:
 def frame_kinds(method: registry.Method) -> tuple[str, ...]:
     """The bundle kinds whose learned frames ``method`` uses (Compass, SOUND): what ``adapt``
     fine-tunes. Adapting the frames raised LEAD (Compass)'s inlier ratio on the bunny's scans
-    by 9 % with 10 % more correct matches; adapting LEAD's or LEAD-PN's reconstruction raised
-    their inlier ratios by 3-22 %, mostly with 5-11 % fewer correct matches (the adaptation
+    by 12 % with 13 % more correct matches; adapting LEAD's or LEAD-PN's reconstruction raised
+    their inlier ratios by 7-20 %, mostly with 3-11 % fewer correct matches (the adaptation
     tables of docs/results.md, docs/training.md)."""
     from sphere_jax import models
     return tuple(k for k in method.needs if models.spec(k).orient is not None)

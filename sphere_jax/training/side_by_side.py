@@ -3,10 +3,10 @@
 The networks one method uses (Compass and LEAD for ``lead@compass``) adapt independently, and
 much of a training step runs on one core (XLA's loops). Side by side, one core each, each
 network made about two thirds of the steps it makes with both cores to itself, where taking
-turns leaves each half of them. On the bunny's scans, 10 minutes of wall time on 2 cores,
-three runs: Compass 1101-1181 steps (1704 alone for 10 minutes, 896 for 5), LEAD 422-451 (664,
-367); LEAD (Compass)'s inlier ratio there rose from 0.105 to 0.120, 0.123 and 0.128 (+14, +17
-and +22 %) against +5 % with 5 minutes each in turn (docs/training.md).
+turns leaves each half of them. On the bunny's scans, 10 minutes of wall time on 2 cores:
+Compass 955 steps (1501 alone for 10 minutes), LEAD 392 (612); LEAD (Compass)'s inlier ratio
+there rose from 0.129 to 0.163 (+26 %), against +29 % with 10 minutes each in turn
+(docs/training.md).
 """
 from __future__ import annotations
 
