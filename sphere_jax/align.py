@@ -251,8 +251,10 @@ def method_bundles(method: registry.Method, bundle=None):
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     given = split_bundles(bundle)
     if given:
-        from sphere_jax import api
-        kinds = one_per_kind([api.load_bundle(b).kind for b in given])
+        from sphere_jax import api, bundle as bundle_files
+        # The kind is the config's: the weights are read once, where they are used.
+        kinds = one_per_kind([bundle_files.read_config(api.bundle_path(b)).model
+                              for b in given])
         for b, kind in zip(given, kinds):
             if kind not in method.needs:
                 raise checks.InputError("bundle", f"of a kind that method {method.key!r} uses "

@@ -89,6 +89,18 @@ def test_several_bundles_replace_the_shipped_ones_of_their_kinds():
         align.method_bundles(lead_compass, "compass,lead_pn")
 
 
+def test_checking_the_given_bundles_reads_no_weights(monkeypatch):
+    """The early check of ``bundle=`` needs only each bundle's kind: its weights are read
+    once, later, where they are used."""
+    from sphere_jax import bundle as bundle_files
+
+    def refuse(path):
+        raise AssertionError(f"weights of {path} read by the check")
+    monkeypatch.setattr(bundle_files, "read_variables", refuse)
+    bundles = align.method_bundles(registry.resolve("lead@compass"), "compass,lead")
+    assert set(bundles) >= {"compass", "lead"}
+
+
 def test_a_share_of_the_keypoints_suffices_when_it_registers_with_confidence(
         pair, monkeypatch, tmp_path, capsys):
     """Progressive description: a pair that registers with confidence from a quarter of its
