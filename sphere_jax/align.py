@@ -176,11 +176,11 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
         failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
         voxelised points in a cloud or ``MIN_MATCHES`` mutual matches.
-      adapt: minutes of adaptation of the method's learned frames (Compass, SOUND) to these
-        two scans first, without labels (:func:`adapted_bundles`; a method without learned
-        frames is refused); ``adapt_workdir`` keeps the adapted bundles
-        (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``), else a temporary
-        folder does.
+      adapt: minutes (wall time) of adaptation of the method's networks to these two scans
+        first, without labels (:func:`adapted_bundles`: Compass and LEAD side by side for
+        ``lead@compass``; a method without a network is refused); ``adapt_workdir`` keeps
+        the adapted bundles (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``),
+        else a temporary folder does.
     """
     chosen = registry.resolve(method, ("descriptor", "voted"))
     method = chosen.key
@@ -196,14 +196,10 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     seed = checks.non_negative(seed, "seed", integer=True)
     bundles = method_bundles(chosen, bundle)
     adapt = None if adapt is None else checks.positive(adapt, "adapt")
-    if adapt and not frame_kinds(chosen):
-        able = [m.name for m in registry.METHODS if m.kind != "diagnostic" and frame_kinds(m)]
-        why = ("which has no network to adapt" if not chosen.learned else
-               "whose frames are not learned (adapting its descriptor raised its inlier ratio "
-               "but mostly cost 3-11 % of its correct matches: docs/training.md; "
-               "experiments.adapt does it)")
-        raise checks.InputError("adapt", f"used with a method whose frames are learned "
-                                f"({', '.join(able)})", f"method {chosen.name!r}, {why}")
+    if adapt and not adapted_kinds(chosen):
+        able = [m.name for m in registry.METHODS if m.kind != "diagnostic" and adapted_kinds(m)]
+        raise checks.InputError("adapt", f"used with a learned method ({', '.join(able)})",
+                                f"method {chosen.name!r}, which has no network to adapt")
     seconds, t0 = {}, time.perf_counter()
 
     def lap(stage):                     # a stage run twice (progressive) adds up
@@ -284,40 +280,52 @@ def one_per_kind(kinds: list) -> list:
     return kinds
 
 
-def frame_kinds(method: registry.Method) -> tuple[str, ...]:
-    """The bundle kinds whose learned frames ``method`` uses (Compass, SOUND): what ``adapt``
-    fine-tunes. Adapting the frames raised LEAD (Compass)'s inlier ratio on the bunny's scans
-    by 12 % with 13 % more correct matches; adapting LEAD's or LEAD-PN's reconstruction raised
-    their inlier ratios by 7-20 %, mostly with 3-11 % fewer correct matches (the adaptation
-    tables of docs/results.md, docs/training.md)."""
-    from sphere_jax import models
-    return tuple(k for k in method.needs if models.spec(k).orient is not None)
+def adapted_kinds(method: registry.Method) -> tuple[str, ...]:
+    """The bundle kinds ``adapt`` fine-tunes for ``method``: every network it uses, all of
+    them trained without labels (Compass and LEAD for ``lead@compass``)."""
+    from sphere_jax.training import adaptation
+    return tuple(k for k in method.needs if k in adaptation.adaptable_kinds())
 
 
-def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir):
-    """``bundles`` with the frame networks ``method`` uses (:func:`frame_kinds`) adapted to
-    the two scans for ``minutes`` in all (shared equally), each with its own loss and no
-    label (:mod:`sphere_jax.training`), at the registration's voxel and radius. A descriptor
-    among them (SOUND) keeps its bundle's whitening (:func:`~sphere_jax.features.whitening_fit.
-    keep_from`: two scans are too few to fit one)."""
+def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, workdir,
+                    progress=True):
+    """``bundles`` with the networks ``method`` uses (:func:`adapted_kinds`) adapted to the
+    two scans for ``minutes`` of wall time, each with its own loss and no label
+    (:mod:`sphere_jax.training`), at the registration's voxel and radius; two networks adapt
+    side by side, one process each on its share of the cores
+    (:mod:`~sphere_jax.training.side_by_side`). Descriptors keep their bundle's whitening
+    (:func:`~sphere_jax.features.whitening_fit.keep_from`: two scans are too few to fit one).
+    Returns ``(bundles, what each adaptation did)``.
+
+    Why both networks of ``lead@compass``: on the bunny's ten scans, 10 minutes of Compass and
+    LEAD side by side raised LEAD (Compass)'s inlier ratio by 26 %, Compass's frames alone for
+    as long by 12 %. Two scans teach less: 5 minutes on each of four bunny pairs the shipped
+    bundles fail registered none of them (docs/training.md)."""
     from sphere_jax import api, training
     from sphere_jax.features import whitening_fit
-    from sphere_jax.training import adaptation
-    kinds = frame_kinds(registry.resolve(method))
+    from sphere_jax.training import adaptation, side_by_side
+    kinds = adapted_kinds(registry.resolve(method))
     os.makedirs(workdir, exist_ok=True)
     scans = []
     for name, points in (("source", source), ("target", target)):
         scans.append(os.path.join(workdir, f"{name}.npy"))
         np.save(scans[-1], np.asarray(points, np.float32))
-    out, notes = dict(bundles), []
-    for kind in kinds:
-        trained = api.load_bundle(bundles[kind])
-        out[kind] = training.adapt(trained, ",".join(scans), None,
-                                   os.path.join(workdir, kind), minutes=minutes / len(kinds),
-                                   data=adaptation.data_at_scale(trained, voxel, radius))
-        whitening_fit.keep_from(bundles[kind], out[kind])
-        notes.append(adaptation.outcome(out[kind]))
-    return out, "; ".join(notes)
+    scans = ",".join(scans)
+    trained = {k: api.load_bundle(bundles[k]) for k in kinds}
+    data = {k: adaptation.data_at_scale(trained[k], voxel, radius) for k in kinds}
+    if len(kinds) == 1:
+        kind = kinds[0]
+        adapted = [training.adapt(trained[kind], scans, None, os.path.join(workdir, kind),
+                                  progress=progress, data=data[kind], minutes=minutes)]
+    else:
+        adapted = side_by_side.adapt_side_by_side(
+            [(k, api.bundle_path(bundles[k]), os.path.join(workdir, k), data[k]) for k in kinds],
+            scans, minutes=minutes, progress=progress)
+    out = dict(bundles)
+    for kind, path in zip(kinds, adapted):
+        whitening_fit.keep_from(bundles[kind], path)
+        out[kind] = path
+    return out, "; ".join(adaptation.outcome(out[k]) for k in kinds)
 
 
 def share_counts(n: int, progressive: bool = True) -> list[int]:

@@ -14,7 +14,7 @@ from sphere_jax import align, paths
 from sphere_jax.data import demo
 from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
-from sphere_jax.features import registry
+from sphere_jax.features import registry, whitening
 
 
 @pytest.fixture(scope="module")
@@ -200,9 +200,9 @@ def test_few_inliers_are_reported_unconfirmed(pair):
 
 @pytest.mark.slow
 def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
-    """``--adapt``: Compass's frames adapted to the two scans (a few seconds here) for LEAD
-    (Compass), kept in OUT/adapted with a card, LEAD itself not, and the pair still
-    registered within 5° and 10 cm; a method without learned frames is refused."""
+    """``--adapt``: Compass and LEAD adapted to the two scans side by side (a few seconds
+    here) for LEAD (Compass), each kept in OUT/adapted with a card, the adapted LEAD keeping
+    the shipped whitening, and the pair still registered within 5° and 10 cm."""
     (src, dst), t_gt = pair
     files = []
     for name, pts in (("src", src), ("dst", dst)):
@@ -213,29 +213,29 @@ def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
                        "--method=lead@compass"])
     printed = capsys.readouterr().out
     assert "adaptation" in printed and "registered" in printed
-    # What the adaptation did, from the adapted bundle's own log.
-    assert re.search(r"adapted compass: \d+ steps, validation loss [\d.]+ (at the start|->)",
-                     printed), printed
-    assert (out / "adapted" / "compass" / "bundle" / "MODEL_CARD.md").is_file()
-    assert not (out / "adapted" / "lead").exists()
+    # What each adaptation did, from the adapted bundles' own logs.
+    for kind in ("lead", "compass"):
+        assert re.search(rf"{kind}: \d+ steps, validation loss [\d.]+ (at the start|->)",
+                         printed), printed
+        assert (out / "adapted" / kind / "bundle" / "MODEL_CARD.md").is_file()
+    statement = whitening.read_statement(str(out / "adapted" / "lead" / "bundle"))
+    assert statement["compass"]["kept_from"].endswith("lead_mid/bundle")
     t = np.loadtxt(out / "transform.txt")
     rre, rte = registration.rre_rte(t, t_gt)
     assert rre < 5 and rte < 0.10
-    with pytest.raises(sphere_jax.SphereJaxError, match="no network to adapt"):
-        align.register(src, dst, method="fpfh", adapt=1)
 
 
-def test_only_methods_with_learned_frames_adapt():
-    """``adapt`` fine-tunes learned frames; LEAD-PN and LEAD in FLARE frames are refused
-    before any work (their reconstruction fine-tune did not help their matching)."""
+def test_adapt_takes_every_network_of_a_learned_method():
+    """``adapt`` fine-tunes the networks a method uses — both of LEAD (Compass) — and refuses
+    a hand-crafted method before any work."""
+    assert align.adapted_kinds(registry.resolve("lead@compass")) == ("lead", "compass")
+    assert align.adapted_kinds(registry.resolve("lead_pn")) == ("lead_pn",)
+    assert align.adapted_kinds(registry.resolve("sound")) == ("sound",)
     p = np.random.default_rng(0).uniform(0, 1, (500, 3))
-    for method in ("lead_pn", "lead@flare"):
-        with pytest.raises(sphere_jax.SphereJaxError, match="adapt must be used with a method "
-                                                            "whose frames are learned .lead@"
-                                                            "compass, sound"):
+    for method in ("fpfh", "shot+vote"):
+        with pytest.raises(sphere_jax.SphereJaxError, match="adapt must be used with a learned "
+                                                            "method .lead@flare, lead@compass"):
             align.register(p, p, method=method, adapt=1)
-    assert align.frame_kinds(registry.resolve("lead@compass")) == ("compass",)
-    assert align.frame_kinds(registry.resolve("sound")) == ("sound",)
 
 
 @pytest.mark.slow

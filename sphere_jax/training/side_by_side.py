@@ -17,9 +17,10 @@ import threading
 import time
 import typing
 
+import jax
 from tqdm import tqdm
 
-from sphere_jax import bundle, model_card
+from sphere_jax import bundle, checks, compile_cache, model_card
 from sphere_jax.training import adaptation
 
 POLL_S = 2.0
@@ -64,13 +65,17 @@ def exit_with_parent(poll_s=POLL_S):
 
 
 def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data, minutes,
-              patience):
+              patience, cache_dir=None):
     """One adaptation in a fresh process, pinned to ``cores`` before its first array (XLA's
     CPU client sizes its thread pool by the cores the process may use). ``bundle_path``: a
-    bundle folder the caller has loaded once already (``sphere_jax.load_bundle`` checks it)."""
+    bundle folder the caller has loaded once already (``sphere_jax.load_bundle`` checks it);
+    ``cache_dir``: the caller's persistent compilation cache, if any (the next adaptation of
+    the same networks then loads its training step instead of compiling it)."""
     exit_with_parent()
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, cores)
+    if cache_dir:
+        compile_cache.enable(cache_dir)
     config = bundle.read_config(bundle_path)
     trained = _Trained(config.model, config, bundle.read_variables(bundle_path))
     return adaptation.adapt(trained, data_root, steps, workdir, learning_rate, progress=False,
@@ -124,8 +129,17 @@ def adapt_side_by_side(jobs, data_root, steps=None, minutes=None, learning_rate=
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(len(jobs), mp_context=context,
                                                 max_tasks_per_child=1) as pool:
+        cache_dir = jax.config.jax_compilation_cache_dir
         futures = [pool.submit(_adapt_on, share, path, data_root, steps, workdir,
-                               learning_rate, data, minutes, patience)
+                               learning_rate, data, minutes, patience, cache_dir)
                    for share, (_, path, workdir, data) in zip(shares, jobs)]
         _watch(futures, [j[0] for j in jobs], [j[2] for j in jobs], minutes, progress)
-    return [f.result() for f in futures]
+    try:
+        return [f.result() for f in futures]
+    except concurrent.futures.BrokenExecutor as e:
+        # A spawned job first imports the caller's script, which must not start jobs itself.
+        raise checks.SphereJaxError(
+            "an adaptation job's process ended without a result: killed (out of memory?), or "
+            "the calling script adapts side by side outside an `if __name__ == \"__main__\":` "
+            "block (each job's process imports the script first, as Python's multiprocessing "
+            "does)") from e
