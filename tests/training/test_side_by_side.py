@@ -79,6 +79,26 @@ def test_a_job_ends_soon_after_its_parent_is_killed():
     assert not _alive(job)
 
 
+
+@pytest.mark.slow
+def test_a_script_without_a_main_guard_gets_a_clear_error(tmp_path):
+    """Spawned jobs import the calling script first; a script that adapts side by side at its
+    top level would start jobs from inside a job, which Python refuses there: the caller gets
+    the project's error naming the guard, not a bare broken pool."""
+    script = tmp_path / "unguarded.py"
+    job = ("lead", paths.shipped_bundle("lead"), str(tmp_path / "lead"), None)
+    script.write_text("from sphere_jax.training import side_by_side\n"
+                      f"side_by_side.adapt_side_by_side([{job!r}], {str(tmp_path)!r}, steps=1, "
+                      "progress=False)\n")
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         timeout=600, cwd=os.path.dirname(os.path.dirname(os.path.dirname(
+                             os.path.abspath(__file__)))))
+    assert out.returncode != 0
+    last = out.stderr.strip().splitlines()[-1]
+    assert last.startswith("sphere_jax.checks.SphereJaxError: an adaptation job's process ended "
+                           "without a result"), out.stderr[-2000:]
+    assert 'if __name__ == "__main__":' in last
+
 def _alive(pid):
     """Whether ``pid`` runs (a zombie, ended but not reaped, counts as ended)."""
     try:
