@@ -79,7 +79,6 @@ def test_a_job_ends_soon_after_its_parent_is_killed():
     assert not _alive(job)
 
 
-
 @pytest.mark.slow
 def test_a_script_without_a_main_guard_gets_a_clear_error(tmp_path):
     """Spawned jobs import the calling script first; a script that adapts side by side at its
@@ -98,6 +97,7 @@ def test_a_script_without_a_main_guard_gets_a_clear_error(tmp_path):
     assert last.startswith("sphere_jax.checks.SphereJaxError: an adaptation job's process ended "
                            "without a result"), out.stderr[-2000:]
     assert 'if __name__ == "__main__":' in last
+
 
 def _alive(pid):
     """Whether ``pid`` runs (a zombie, ended but not reaped, counts as ended)."""
