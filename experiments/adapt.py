@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 
 from experiments import cli
-from sphere_jax import align, api, checks, training, workdirs
+from sphere_jax import align, api, checks, workdirs
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import io
 from sphere_jax.features import whitening_fit
@@ -89,22 +89,17 @@ def main(argv=None):
     budget = (f", {minutes:g} min" if minutes else "") + (
         f", at most {args.steps} steps" if args.steps else "")
     with cli.refusals():
-        if len(bundles) == 1:
-            print(f"adapting {kinds[0]} on {args.data}: voxel {voxel:.4g}, radius "
-                  f"{radius:.4g}{budget}")
-            paths = [training.adapt(bundles[0], args.data, args.steps, args.workdir,
-                                    args.learning_rate, data=data[0], minutes=minutes,
-                                    patience=args.patience)]
-        else:
-            shares = side_by_side.core_shares(len(bundles))
-            print(f"adapting {', '.join(kinds)} side by side on {args.data}: voxel "
-                  f"{voxel:.4g}, radius {radius:.4g}{budget}; cores "
-                  + ", ".join(f"{k} {list(c)}" for k, c in zip(kinds, shares)))
-            jobs = [(k, api.bundle_path(b), os.path.join(args.workdir, k), d)
-                    for k, b, d in zip(kinds, given, data)]
-            paths = side_by_side.adapt_side_by_side(jobs, args.data, args.steps, minutes,
-                                                    args.learning_rate, args.patience,
-                                                    shares=shares)
+        several = len(bundles) > 1
+        shares = side_by_side.core_shares(len(bundles))
+        cores = "; cores " + ", ".join(f"{k} {list(c)}" for k, c in zip(kinds, shares))
+        print(f"adapting {', '.join(kinds)}{' side by side' if several else ''} on "
+              f"{args.data}: voxel {voxel:.4g}, radius {radius:.4g}{budget}"
+              f"{cores if several else ''}")
+        jobs = [(k, api.bundle_path(b), os.path.join(args.workdir, k) if several
+                 else args.workdir, d) for k, b, d in zip(kinds, given, data)]
+        paths = side_by_side.adapt_side_by_side(jobs, args.data, args.steps, minutes,
+                                                args.learning_rate, args.patience,
+                                                shares=shares)
         for source, path in zip(given, paths):
             if args.refit_whitening:
                 whitening_fit.fit_if_descriptor(path, args.compass,

@@ -82,10 +82,13 @@ def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data
         os.sched_setaffinity(0, cores)
     if cache_dir:
         compile_cache.enable(cache_dir)
+    return adaptation.adapt(_read(bundle_path), data_root, steps, workdir, learning_rate,
+                            progress=False, data=data, minutes=minutes, patience=patience)
+
+
+def _read(bundle_path) -> _Trained:
     config = bundle.read_config(bundle_path)
-    trained = _Trained(config.model, config, bundle.read_variables(bundle_path))
-    return adaptation.adapt(trained, data_root, steps, workdir, learning_rate, progress=False,
-                            data=data, minutes=minutes, patience=patience)
+    return _Trained(config.model, config, bundle.read_variables(bundle_path))
 
 
 def _last_logged(workdir):
@@ -128,8 +131,14 @@ def adapt_side_by_side(jobs, data_root, steps=None, minutes=None, learning_rate=
     """:func:`~sphere_jax.training.adaptation.adapt` for each of ``jobs`` — ``(name, bundle
     folder, workdir, data overrides)`` — at the same time, each in a process of its own on its
     share of the cores (``shares``, default :func:`core_shares`), with the same ``steps`` /
-    ``minutes`` budget. Returns the adapted bundles' paths in the order of ``jobs``; a job
-    that failed raises its error once all have ended (the others' bundles are written)."""
+    ``minutes`` budget; a single job adapts in this process, on every core. Returns the
+    adapted bundles' paths in the order of ``jobs``; a job that failed raises its error once
+    all have ended (the others' bundles are written)."""
+    if len(jobs) == 1:
+        _, path, workdir, data = jobs[0]
+        return [adaptation.adapt(_read(path), data_root, steps, workdir, learning_rate,
+                                 progress=progress, data=data, minutes=minutes,
+                                 patience=patience)]
     shares = core_shares(len(jobs)) if shares is None else shares
     # spawn: a fresh interpreter per job; a forked JAX runtime is not safe to use.
     context = multiprocessing.get_context("spawn")

@@ -85,9 +85,9 @@ def test_a_script_without_a_main_guard_gets_a_clear_error(tmp_path):
     top level would start jobs from inside a job, which Python refuses there: the caller gets
     the project's error naming the guard, not a bare broken pool."""
     script = tmp_path / "unguarded.py"
-    job = ("lead", paths.shipped_bundle("lead"), str(tmp_path / "lead"), None)
+    jobs = [(k, paths.shipped_bundle(k), str(tmp_path / k), None) for k in ("lead", "compass")]
     script.write_text("from sphere_jax.training import side_by_side\n"
-                      f"side_by_side.adapt_side_by_side([{job!r}], {str(tmp_path)!r}, steps=1, "
+                      f"side_by_side.adapt_side_by_side({jobs!r}, {str(tmp_path)!r}, steps=1, "
                       "progress=False)\n")
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
                          timeout=600, cwd=os.path.dirname(os.path.dirname(os.path.dirname(
