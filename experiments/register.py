@@ -50,9 +50,10 @@ def main(argv=None):
                         help="a bundle replacing the shipped one of its kind; several, "
                              "comma-separated (e.g. an adapted Compass and LEAD)")
     parser.add_argument("--adapt", type=cli.positive_number, default=None, metavar="MINUTES",
-                        help="adapt the method's networks to these two scans first, without "
-                             "labels (Compass and LEAD side by side for lead@compass; kept in "
-                             "OUT/adapted with --out)")
+                        help="adapt the method's networks to these two scans, without labels "
+                             "(Compass and LEAD side by side for lead@compass; kept in "
+                             "OUT/adapted with --out), register with them too and keep the "
+                             "better result")
     parser.add_argument("--no-icp", action="store_true")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")

@@ -81,7 +81,8 @@ class Registration:
     method: str
     seconds: dict           # per stage
     reason: str = ""        # why it failed; '' when it succeeded
-    adaptation: str = ""    # what adapting the frames did (register(adapt=...)), per network
+    adaptation: str = ""    # what adapting did (register(adapt=...)), per network
+    kept: str = ""          # with adapt: whether this is the adapted or the given bundles' result
     keypoints: tuple = ()   # (described, drawn) per cloud, source first
 
     @property
@@ -113,7 +114,8 @@ class Registration:
                    if np.isfinite(self.voxel) else "no voxel or radius chosen")
                 + f"{self._described()}\n"
                 f"{times}"
-                + (f"\nadapted {self.adaptation}" if self.adaptation else ""))
+                + (f"\nadapted {self.adaptation}" if self.adaptation else "")
+                + (f"\nkept {self.kept}" if self.kept else ""))
 
     def _described(self) -> str:
         if not self.keypoints:
@@ -176,11 +178,14 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
       min_inliers, min_fitness: below these RANSAC inliers or ICP fitness the result is a
         failure (``ok`` False, with the reason), as it is with fewer than ``MIN_POINTS``
         voxelised points in a cloud or ``MIN_MATCHES`` mutual matches.
-      adapt: minutes (wall time) of adaptation of the method's networks to these two scans
-        first, without labels (:func:`adapted_bundles`: Compass and LEAD side by side for
-        ``lead@compass``; a method without a network is refused); ``adapt_workdir`` keeps
-        the adapted bundles (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``),
-        else a temporary folder does.
+      adapt: minutes (wall time) of adaptation of the method's networks to these two scans,
+        without labels (:func:`adapted_bundles`: Compass and LEAD side by side for
+        ``lead@compass``; a method without a network is refused). The scans are registered
+        with the bundles as given and with the adapted ones, and the better result returned
+        (a success over a failure, then more RANSAC inliers; ``Registration.kept`` says
+        which). ``adapt_workdir`` keeps the adapted bundles
+        (``<adapt_workdir>/<kind>/bundle``, reusable with ``bundle=``), else a temporary
+        folder does.
     """
     chosen = registry.resolve(method, ("descriptor", "voted"))
     method = chosen.key
@@ -227,16 +232,35 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
     if few:
         return fail(reason="too few points on the voxel grid: " + ", ".join(
             f"{n} has {k} at voxel {voxel:.4g}" for n, k in few) + f" (at least {MIN_POINTS})")
-    note = ""
+    match = functools.partial(_match, src, dst, method, voxel=voxel, radius=radius, seed=seed,
+                              icp=icp, min_inliers=min_inliers, min_fitness=min_fitness,
+                              seconds=seconds, fail=fail, progressive=progressive)
+    if not adapt:
+        return match(bundles=bundles, lap=lap)
+    # Adapting on two scans can lose a pair the bundles as given register (LiDAR rescans of
+    # redkitchen 34 -> 6: 15 RANSAC inliers and 2 degrees off before, FAILED after), so both
+    # registrations are made and the better kept: adaptation never makes a result worse.
+    given = match(bundles=bundles, lap=lambda stage: None)
+    lap("registration with the bundles as given")
     with contextlib.ExitStack() as stack:        # a temporary folder lives while it is used
-        if adapt:
-            folder = adapt_workdir or stack.enter_context(tempfile.TemporaryDirectory())
-            bundles, note = adapted_bundles(method, bundles, source, target, voxel, radius,
-                                            adapt, folder)
-            lap("adaptation")
-        return dataclasses.replace(_match(src, dst, method, bundles, voxel, radius, seed, icp,
-                                          min_inliers, min_fitness, seconds, lap, fail,
-                                          progressive), adaptation=note)
+        folder = adapt_workdir or stack.enter_context(tempfile.TemporaryDirectory())
+        adapted, note = adapted_bundles(method, bundles, source, target, voxel, radius, adapt,
+                                        folder)
+        lap("adaptation")
+        after = match(bundles=adapted, lap=lap)
+    best, kept = _better(after, given)
+    return dataclasses.replace(best, adaptation=note, kept=kept)
+
+
+def _better(adapted: Registration, given: Registration):
+    """The registration to keep of the adapted bundles' and the given ones' — a success over a
+    failure, then more RANSAC inliers (ties: the adapted one) — and which it is, in words."""
+    rank = lambda r: (r.ok, r.inliers)
+    say = lambda r: f"{r.inliers} RANSAC inliers" if r.ok else "FAILED"
+    if rank(adapted) >= rank(given):
+        return adapted, (f"the adapted bundles' result ({say(adapted)}; with the bundles "
+                         f"as given: {say(given)})")
+    return given, f"the result of the bundles as given ({say(given)}; adapted: {say(adapted)})"
 
 
 def method_bundles(method: registry.Method, bundle=None):
@@ -301,7 +325,7 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     LEAD side by side raised LEAD (Compass)'s inlier ratio by 26 %, Compass's frames alone for
     as long by 12 %. Two scans teach less: 5 minutes on each of four bunny pairs the shipped
     bundles fail registered none of them (docs/training.md)."""
-    from sphere_jax import api, training
+    from sphere_jax import api
     from sphere_jax.features import whitening_fit
     from sphere_jax.training import adaptation, side_by_side
     kinds = adapted_kinds(registry.resolve(method))
@@ -311,16 +335,10 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
         scans.append(os.path.join(workdir, f"{name}.npy"))
         np.save(scans[-1], np.asarray(points, np.float32))
     scans = ",".join(scans)
-    trained = {k: api.load_bundle(bundles[k]) for k in kinds}
-    data = {k: adaptation.data_at_scale(trained[k], voxel, radius) for k in kinds}
-    if len(kinds) == 1:
-        kind = kinds[0]
-        adapted = [training.adapt(trained[kind], scans, None, os.path.join(workdir, kind),
-                                  progress=progress, data=data[kind], minutes=minutes)]
-    else:
-        adapted = side_by_side.adapt_side_by_side(
-            [(k, api.bundle_path(bundles[k]), os.path.join(workdir, k), data[k]) for k in kinds],
-            scans, minutes=minutes, progress=progress)
+    jobs = [(k, api.bundle_path(bundles[k]), os.path.join(workdir, k),
+             adaptation.data_at_scale(api.load_bundle(bundles[k]), voxel, radius))
+            for k in kinds]
+    adapted = side_by_side.adapt_side_by_side(jobs, scans, minutes=minutes, progress=progress)
     out = dict(bundles)
     for kind, path in zip(kinds, adapted):
         whitening_fit.keep_from(bundles[kind], path)

@@ -213,6 +213,8 @@ def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
                        "--method=lead@compass"])
     printed = capsys.readouterr().out
     assert "adaptation" in printed and "registered" in printed
+    assert re.search(r"\nkept the (adapted bundles' result|result of the bundles as given) "
+                     r"\(\d+ RANSAC inliers", printed), printed
     # What each adaptation did, from the adapted bundles' own logs.
     for kind in ("lead", "compass"):
         assert re.search(rf"{kind}: \d+ steps, validation loss [\d.]+ (at the start|->)",
@@ -223,6 +225,42 @@ def test_register_adapts_first_when_asked(pair, tmp_path, capsys):
     t = np.loadtxt(out / "transform.txt")
     rre, rte = registration.rre_rte(t, t_gt)
     assert rre < 5 and rte < 0.10
+
+
+@pytest.mark.parametrize("adapted_inliers, kept_adapted", [(None, False), (14, False),
+                                                           (15, True), (60, True)])
+def test_register_with_adapt_keeps_the_better_of_the_two_results(monkeypatch, adapted_inliers,
+                                                                 kept_adapted):
+    """Adapting on two scans can lose a pair (a LiDAR rescan pair: 15 inliers before, FAILED
+    after), so ``adapt`` registers with the bundles as given and the adapted ones and keeps a
+    success over a failure, then the one with more RANSAC inliers (a tie: the adapted)."""
+    registered = []
+
+    def fake_match(src, dst, method, bundles, **kwargs):
+        adapted = bundles["lead"] == "adapted lead"
+        inliers = adapted_inliers if adapted else 15
+        result = align.Registration(np.diag([1.0, 1, 1, 1]) * (2 if adapted else 1), inliers or 8,
+                                    500, 0.4, 0.02, 0.02, 0.3, method, kwargs["seconds"],
+                                    "" if inliers else "RANSAC found no consensus")
+        registered.append(adapted)
+        return result
+
+    monkeypatch.setattr(align, "_match", fake_match)
+    monkeypatch.setattr(align, "adapted_bundles", lambda method, bundles, *a, **k: (
+        dict(bundles, lead="adapted lead", compass="adapted compass"), "lead: 3 steps"))
+    points = np.random.default_rng(0).uniform(0, 1, (2000, 3))
+    result = align.register(points, points, method="lead@compass", adapt=1, voxel=0.05,
+                            radius=0.5)
+    assert registered == [False, True]                        # the given bundles first
+    assert (result.transform[0, 0] == 2) == kept_adapted
+    assert result.adaptation == "lead: 3 steps"
+    given, adapted = "15 RANSAC inliers", f"{adapted_inliers} RANSAC inliers" \
+        if adapted_inliers else "FAILED"
+    assert result.kept == (f"the adapted bundles' result ({adapted}; with the bundles as "
+                           f"given: {given})" if kept_adapted else
+                           f"the result of the bundles as given ({given}; adapted: {adapted})")
+    assert result.summary().endswith("\nkept " + result.kept)
+    assert "registration with the bundles as given" in result.seconds
 
 
 def test_adapt_takes_every_network_of_a_learned_method():
