@@ -84,7 +84,7 @@ def main(argv=None):
         if args.compass is not None:                # before reading any scan
             whitening_fit.frame_bundle(args.compass)
         voxel, radius = auto_scale(args.data, args.voxel, args.radius)
-        data = [adaptation.data_at_scale(b, voxel, radius) for b in bundles]
+        data = [adaptation.data_at_scale(b.config, voxel, radius) for b in bundles]
         workdirs.prepare(args.workdir, "--workdir")
     budget = (f", {minutes:g} min" if minutes else "") + (
         f", at most {args.steps} steps" if args.steps else "")

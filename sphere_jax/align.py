@@ -324,8 +324,9 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     Why both networks of ``lead@compass``: on the bunny's ten scans, 10 minutes of Compass and
     LEAD side by side raised LEAD (Compass)'s inlier ratio by 26 %, Compass's frames alone for
     as long by 12 %. Two scans teach less: 5 minutes on each of four bunny pairs the shipped
-    bundles fail registered none of them (docs/training.md)."""
-    from sphere_jax import api
+    bundles fail registered none of them, nor a LiDAR pair, and another they lost
+    (docs/training.md; :func:`register` keeps the better result)."""
+    from sphere_jax import api, bundle as bundle_files
     from sphere_jax.features import whitening_fit
     from sphere_jax.training import adaptation, side_by_side
     kinds = adapted_kinds(registry.resolve(method))
@@ -335,8 +336,9 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
         scans.append(os.path.join(workdir, f"{name}.npy"))
         np.save(scans[-1], np.asarray(points, np.float32))
     scans = ",".join(scans)
-    jobs = [(k, api.bundle_path(bundles[k]), os.path.join(workdir, k),
-             adaptation.data_at_scale(api.load_bundle(bundles[k]), voxel, radius))
+    folders = {k: api.bundle_path(bundles[k]) for k in kinds}
+    jobs = [(k, folders[k], os.path.join(workdir, k),
+             adaptation.data_at_scale(bundle_files.read_config(folders[k]), voxel, radius))
             for k in kinds]
     adapted = side_by_side.adapt_side_by_side(jobs, scans, minutes=minutes, progress=progress)
     out = dict(bundles)

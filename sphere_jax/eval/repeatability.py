@@ -134,7 +134,7 @@ def adapted_bundles(config, bundles, names, workdir, progress):
             out[kind] = training.adapt(trained, scene_lib.data_root(config),
                                        config.adapt_steps, folder, progress=progress,
                                        data=adaptation.data_at_scale(
-                                           trained, config.data.voxel, config.data.radius))
+                                           trained.config, config.data.voxel, config.data.radius))
     return out
 
 

@@ -58,10 +58,11 @@ FROZEN_BATCH_NORM = ("lead", "lead_pn")
 # against 0.113 (a Compass trained on the rooms alone, validated on 64 patches).
 
 
-def data_at_scale(trained, voxel, radius):
+def data_at_scale(config, voxel, radius):
     """``config.data`` overrides for scans at another scale: ``voxel`` and ``radius`` in the
-    scans' unit, keypoints as dense relative to the support as in ``trained``'s training."""
-    d = trained.config.data
+    scans' unit, keypoints as dense relative to the support as in the training of the bundle
+    whose ``config`` it is."""
+    d = config.data
     return dict(voxel=voxel, radius=radius, keypoint_leaf=d.keypoint_leaf * radius / d.radius)
 
 
