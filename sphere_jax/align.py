@@ -46,8 +46,9 @@ PROGRESSIVE_SHARES = (0.25, 0.5, 1.0)
 CONFIDENT_INLIERS = 40
 # Fewer inliers than that and the result says it is unconfirmed even from all keypoints:
 # wrong registrations that passed MIN_INLIERS and MIN_FITNESS there had up to 29 (LEAD-PN,
-# FPFH, SHOT and USC on the 27 pairs; 25 on the LiDAR rescans; docs/usage.md). At object scale
-# inliers prove less: two of the bunny's view pairs are wrong with 62 and 120.
+# FPFH, SHOT and USC on the 27 pairs; docs/usage.md). Where scans overlap little inliers prove
+# less: the 10000-step LEAD-PN registers the LiDAR rescans of redkitchen 59 -> 21 (3DLoMatch)
+# 92 degrees off with 41, and two of the bunny's view pairs are wrong with 62 and 120.
 # The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
 # as ``lead@compass`` resolve to them).
 LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
@@ -239,7 +240,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         return match(bundles=bundles, lap=lap)
     # Adapting on two scans can lose a pair the bundles as given register (LiDAR rescans of
     # redkitchen 34 -> 6: 15 RANSAC inliers and 2 degrees off before, FAILED after), so both
-    # registrations are made and the better kept: adaptation never makes a result worse.
+    # registrations are made and the better kept: adapting never loses a registration.
     given = match(bundles=bundles, lap=lambda stage: None)
     lap("registration with the bundles as given")
     with contextlib.ExitStack() as stack:        # a temporary folder lives while it is used
@@ -256,7 +257,7 @@ def _better(adapted: Registration, given: Registration):
     """The registration to keep of the adapted bundles' and the given ones' — a success over a
     failure, then more RANSAC inliers (ties: the adapted one) — and which it is, in words."""
     rank = lambda r: (r.ok, r.inliers)
-    say = lambda r: f"{r.inliers} RANSAC inliers" if r.ok else "FAILED"
+    say = lambda r: f"{'' if r.ok else 'FAILED, '}{r.inliers} RANSAC inliers"
     if rank(adapted) >= rank(given):
         return adapted, (f"the adapted bundles' result ({say(adapted)}; with the bundles "
                          f"as given: {say(given)})")

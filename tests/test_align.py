@@ -254,8 +254,9 @@ def test_register_with_adapt_keeps_the_better_of_the_two_results(monkeypatch, ad
     assert registered == [False, True]                        # the given bundles first
     assert (result.transform[0, 0] == 2) == kept_adapted
     assert result.adaptation == "lead: 3 steps"
-    given, adapted = "15 RANSAC inliers", f"{adapted_inliers} RANSAC inliers" \
-        if adapted_inliers else "FAILED"
+    given = "15 RANSAC inliers"
+    adapted = (f"{adapted_inliers} RANSAC inliers" if adapted_inliers
+               else "FAILED, 8 RANSAC inliers")
     assert result.kept == (f"the adapted bundles' result ({adapted}; with the bundles as "
                            f"given: {given})" if kept_adapted else
                            f"the result of the bundles as given ({given}; adapted: {adapted})")
