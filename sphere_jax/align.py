@@ -240,7 +240,7 @@ def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
         return match(bundles=bundles, lap=lap)
     # Adapting on two scans can lose a pair the bundles as given register (LiDAR rescans of
     # redkitchen 34 -> 6: 15 RANSAC inliers and 2 degrees off before, FAILED after), so both
-    # registrations are made and the better kept: adapting never loses a registration.
+    # registrations are made and the better kept: adapting never turns a success into a failure.
     given = match(bundles=bundles, lap=lambda stage: None)
     lap("registration with the bundles as given")
     with contextlib.ExitStack() as stack:        # a temporary folder lives while it is used
