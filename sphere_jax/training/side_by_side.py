@@ -74,7 +74,7 @@ def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data
               patience, cache_dir=None):
     """One adaptation in a fresh process, pinned to ``cores`` before its first array (XLA's
     CPU client sizes its thread pool by the cores the process may use). ``bundle_path``: a
-    bundle folder the caller has loaded once already (``sphere_jax.load_bundle`` checks it);
+    bundle folder whose config the caller has read (its weights are read here, once);
     ``cache_dir``: the caller's persistent compilation cache, if any (the next adaptation of
     the same networks then loads its training step instead of compiling it)."""
     exit_with_parent()
