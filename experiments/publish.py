@@ -6,16 +6,16 @@ are generated from the runs' own files, so a rerun updates them.
         [--drop=SECTION_KEY ...] [--fresh]
 
 Each RUN_DIR is an ``experiments.evaluate`` workdir (its ``run.json`` says the command, the
-bundles and the date; its markdown and CSV hold the tables). ``docs/results.md`` has one
-section per run, keyed by its folder: a run published again replaces its own section, the
-others stay but those ``--drop`` names (``--fresh``: only the runs given, in their order).
-``--headline`` (a registration run) replaces the table between the README's ``headline``
-markers; every bundle a run used gets the run's table in its model card
-(:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with the shipped
-bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
-``adapt_steps``): a section compares them method by method and says what each bundle adapted
-on, for how long. ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured and met or
-not (:mod:`experiments.standing`).
+bundles and the date; its markdown and CSV hold the tables, a registration run's pair votes in
+``votes.md``). ``docs/results.md`` has one section per run, keyed by its folder: a run published
+again replaces its own section, the others stay but those ``--drop`` names (``--fresh``: only
+the runs given, in their order). ``--headline`` (a registration run) replaces the table between
+the README's ``headline`` markers; every bundle a run used gets the run's table in its model
+card (:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with the
+shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
+``adapt_steps``): a section compares them method by method and says what each bundle adapted on,
+for how long. ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured
+and met or not (:mod:`experiments.standing`).
 """
 from __future__ import annotations
 
@@ -37,6 +37,9 @@ HEADLINE = (("fmr", "FMR", "{:.2f}"), ("inlier_ratio", "inlier ratio", "{:.3f}")
 # A description time measured while other processes used more than this share of the cores
 # is marked as shared (sphere_jax/eval/timing.py).
 SHARED = 0.1
+# Tables a task writes beside its main one that its section shows too: the pair vote's rotation
+# errors say how far a voted method's frames are from the truth, pair by pair.
+BESIDE = {"registration": ("votes",)}
 
 
 def stem_of(record) -> str:
@@ -57,6 +60,10 @@ def read_run(run_dir):
         found = sorted(glob.glob(os.path.join(run_dir, "*.md")))
         md_path = found[0] if found else None
     markdown = open(md_path).read() if md_path else ""
+    for stem in BESIDE.get(record.get("task"), ()):
+        path = os.path.join(run_dir, f"{stem}.md")
+        if os.path.isfile(path):
+            markdown = markdown.rstrip() + "\n\n" + open(path).read()
     return record, markdown
 
 

@@ -135,6 +135,22 @@ def _registration_run(tmp_path, name, bundles, means):
     return str(run)
 
 
+def test_a_registration_section_shows_its_pair_votes_below_its_tables(tmp_path):
+    """The vote's rotation errors (votes.md) are published in the run's section, after its
+    own tables; a run without a vote has none."""
+    voted = _registration_run(tmp_path, "voted", {}, {"lead_vote": (0.5, 400, 1.0)})
+    (tmp_path / "voted" / "results.md").write_text("# Registration benchmark\n\n| ir |\n")
+    (tmp_path / "voted" / "votes.md").write_text("# Pair votes\n\n| lead_vote | 0-4 | 1.42 |\n")
+    plain = _registration_run(tmp_path, "plain", {}, {"shot": (0.3, 200, 1.0)})
+    results = tmp_path / "results.md"
+    publish.publish([voted, plain], results=str(results))
+    text = results.read_text()
+    section = text[text.index("evaluate voted"):text.index("evaluate plain")]
+    assert section.index("| ir |") < section.index("### Pair votes") < section.index(
+        "| lead_vote | 0-4 | 1.42 |")
+    assert text.count("Pair votes") == 1
+
+
 def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tmp_path):
     shipped = _compass_bundle(tmp_path / "shipped", 100)
     adapted = tmp_path / "adapted"
