@@ -389,3 +389,19 @@ def test_the_headline_marks_a_time_measured_beside_other_processes(tmp_path):
     assert "| fpfh | 0.50 | 0.100 | 20 | 0.50 | 0.05 |" in table        # alone
     assert "| shot | 0.75 | 0.200 | 40 | 0.75 | 0.30 |" in table        # not recorded
     assert "other processes used N % of the cores" in table
+
+
+def test_the_weights_index_names_each_bundles_data_root_and_scan_count(tmp_path):
+    """One row per shipped kind: its config's data.root as given and the scans (or shapes)
+    it held, summed over the training statement's folders."""
+    for folder, root, data in (
+            ("c", "embedded:1,shared/x", {"kind": "scans", "folders": {"a": 12, "b": 1}}),
+            ("s", "/shapes", {"kind": "shapes", "folders": {"/shapes": 1}})):
+        bundle.save(tmp_path / folder / "bundle", ml_collections.ConfigDict({
+            "model": "compass", "data": {"root": root},
+            "train": {"steps": 3, "batch_size": 2, "learning_rate": 1e-3}}),
+            {"params": {"w": jnp.ones(1)}, "batch_stats": {}}, training_data=data)
+    index = open(model_card.weights_index(str(tmp_path), {"compass": "c",
+                                                          "compass_shapes": "s"})).read()
+    assert "| 3 / 3 × 2 | `embedded:1,shared/x` (13 scans) |" in index
+    assert "| `/shapes` (1 shape) |" in index
