@@ -1,6 +1,6 @@
 """The supports of keypoints as the networks see them: every keypoint's neighbours within a
-radius, resampled to a fixed count in units of the radius, drawn chunk by chunk so memory stays
-that of one chunk whatever the number of keypoints."""
+radius, resampled evenly to a fixed count (:data:`DRAW`) in units of the radius, drawn chunk by
+chunk so memory stays that of one chunk whatever the number of keypoints."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,6 +8,10 @@ from sklearn.neighbors import KDTree
 
 from sphere_jax import checks
 from sphere_jax.data import patches as patch_lib
+
+# How every network's support is drawn when it describes or orients (patches.DRAWS); an
+# evaluation's kept results carry it (eval/resume.py), so a change redoes them.
+DRAW = "even"
 
 # Fewest support points a keypoint needs: below it the N points of a patch are drawn from a
 # handful (one neighbour gave N copies of one point) and no frame or descriptor means anything.
@@ -22,12 +26,13 @@ class SupportStream:
     :meth:`make` must be called on consecutive row ranges in order (the patch sampling is one
     random stream, so the chunking does not change the patches)."""
 
-    def __init__(self, points, keypoints, radius, n_points, seed, min_support):
+    def __init__(self, points, keypoints, radius, n_points, seed, min_support, draw=DRAW):
         seed = checks.non_negative(seed, "seed", integer=True)
         self.points = checks.cloud(points)
         idx, coords = checks.keypoints(keypoints, len(self.points))
         self.centres = self.points[idx] if coords is None else coords
         self.radius, self.n_points, self.min_support = radius, n_points, min_support
+        self.draw = checks.choice(draw, "draw", patch_lib.DRAWS)
         self.tree = KDTree(self.points)
         if len(self.centres):
             # Points at the centre give no direction: they are not support.
@@ -54,7 +59,7 @@ class SupportStream:
         """Inputs of rows ``start:stop``: unit patches ``[k, N, 3]`` (and frames)."""
         rows = self.rows[start:stop]
         got = patch_lib.patches_around(self.points, self.centres[rows], self.radius,
-                                       self.n_points, self._rng, 1, self.tree)
+                                       self.n_points, self._rng, 1, self.tree, self.draw)
         unit = got.points / np.float32(self.radius)
         return (unit,) if self.frames is None else (unit, self.frames[rows])
 
@@ -68,13 +73,14 @@ class SupportStream:
         return out if on_invalid == "raise" else (out, self.valid.copy())
 
 
-def extract_unit_patches(points, keypoints, radius, n_points, seed=0, min_support=1):
+def extract_unit_patches(points, keypoints, radius, n_points, seed=0, min_support=1,
+                         draw=DRAW):
     """All patches ``[K, n_points, 3]`` at once, in units of ``radius``, around ``keypoints``
     (indices ``[K]`` or coordinates ``[K, 3]``); every keypoint must have ``min_support``
     support points."""
     stream = SupportStream(points, keypoints, checks.positive(radius, "radius"),
                            checks.positive(n_points, "n_points", integer=True), seed,
-                           min_support)
+                           min_support, draw)
     stream.check("raise")
     return stream.make(0, stream.n)[0]
 

@@ -17,6 +17,7 @@ import shutil
 
 from sphere_jax import bundle as bundle_files
 from sphere_jax import files
+from sphere_jax.data import supports
 from sphere_jax.features import registry
 
 FOLDER = "finished"
@@ -34,9 +35,12 @@ class _Keys:
         self.prints = {k: bundle_files.fingerprint(p) for k, p in sorted(bundles.items()) if p}
 
     def tag(self, method):
-        """Short hash of the fingerprints of the bundles ``method`` uses (None: unknown)."""
+        """Short hash of the fingerprints of the bundles ``method`` uses and of how its
+        supports are drawn (None: unknown)."""
         try:
             used = [self.prints.get(k) for k in registry.needs(method)]
+            # A network's result, and FLARE's, also depends on how supports are drawn.
+            used += [supports.DRAW] if registry.resamples(method) else []
         except ValueError:
             return None
         return hashlib.sha256(json.dumps(used).encode()).hexdigest()[:8] if used else "none"

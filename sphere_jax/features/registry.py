@@ -104,3 +104,10 @@ def needs(key_or_name) -> tuple[str, ...]:
     if key_or_name in LRFS:
         return LRFS[key_or_name]
     return resolve(key_or_name).needs
+
+
+def resamples(key_or_name) -> bool:
+    """Whether a method or LRF reads supports resampled to a fixed count
+    (:mod:`sphere_jax.data.supports`): the networks and FLARE's frames do; the hand-crafted
+    descriptors read exact neighbourhoods."""
+    return bool(needs(key_or_name)) or key_or_name == "flare"

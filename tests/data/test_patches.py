@@ -20,6 +20,33 @@ def test_patches_are_local_fixed_size_and_exclude_the_keypoint():
     assert len(counts) == big.counts[0] and counts.std() / counts.mean() < 0.2
 
 
+def _multiplicities(support_Nx3, patch_Nx3):
+    """How often each support point appears in a patch drawn from it."""
+    index = {tuple(p): i for i, p in enumerate(support_Nx3)}
+    return np.bincount([index[tuple(p)] for p in patch_Nx3], minlength=len(support_Nx3))
+
+
+def test_even_draws_take_every_support_point_as_often_as_the_count_allows():
+    """'even': with c support points and N >= c draws each point comes N // c or N // c + 1
+    times (random draws leave some out and repeat others); with N < c, N distinct points."""
+    rng = np.random.default_rng(3)
+    cloud = rng.uniform(-1, 1, (400, 3)).astype(np.float32)
+    centre = np.zeros((1, 3), np.float32)
+    support = cloud[np.linalg.norm(cloud, axis=1) <= 0.8]
+    c = len(support)
+    for n in (c, 3 * c + 7):
+        got = patches.patches_around(cloud, centre, 0.8, n, rng, draw="even")
+        m = _multiplicities(support, got.points[0])
+        assert m.min() == n // c and m.max() <= n // c + 1 and m.sum() == n
+        noisy = _multiplicities(support, patches.patches_around(
+            cloud, centre, 0.8, n, rng).points[0])
+        assert noisy.max() - noisy.min() >= 2
+    few = patches.patches_around(cloud, centre, 0.8, c // 3, rng, draw="even").points[0]
+    assert len(np.unique(few, axis=0)) == c // 3
+    with pytest.raises(ValueError, match="draw must be one of 'random', 'even'"):
+        patches.patches_around(cloud, centre, 0.8, 8, rng, draw="grid")
+
+
 def test_min_points_drops_sparse_supports():
     cloud = np.concatenate([np.random.default_rng(1).normal(size=(500, 3)) * 0.05,
                             [[5.0, 5.0, 5.0], [5.01, 5.0, 5.0]]]).astype(np.float32)

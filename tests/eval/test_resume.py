@@ -42,3 +42,18 @@ def test_kept_results_follow_the_bundles_each_method_uses(tmp_path):
     kept, _ = _kept(tmp_path, {k: str(p) for k, p in moved.items()})
     assert kept["fpfh"] is not None
     assert kept["lead"] is None and kept["lead_compass"] is None
+
+
+def test_a_new_way_of_drawing_supports_redoes_the_networks_and_flare(tmp_path, monkeypatch):
+    """Results of methods that read resampled supports (the networks, FLARE's frames) are kept
+    under the support draw too; the hand-crafted descriptors' are not."""
+    bundles = {"lead": _bundle(tmp_path / "lead", b"1")}
+    config = ml_collections.ConfigDict({"seed": 0, "methods": "fpfh,lead", "bundles": {}})
+    finished = resume.Finished(tmp_path / "run", config, bundles)
+    for m in ("fpfh", "shot", "lead", "flare"):
+        finished.put(Result(m, "kitchen", 1.0))
+    assert resume.kept(tmp_path / "run", config, bundles) == 4
+    monkeypatch.setattr(resume.supports, "DRAW", "random")
+    after = resume.Finished(tmp_path / "run", config, bundles)
+    assert {m for m in ("fpfh", "shot", "lead", "flare")
+            if after.get(m, "kitchen") is not None} == {"fpfh", "shot"}
