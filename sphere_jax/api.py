@@ -25,7 +25,7 @@ from sphere_jax import checks
 from sphere_jax import models, paths
 from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
-from sphere_jax.data.supports import (MIN_SUPPORT, StreamChain, SupportStream,
+from sphere_jax.data.supports import (DRAW, MIN_SUPPORT, StreamChain, SupportStream,
                                       extract_unit_patches)
 from sphere_jax.features import whitening as whitening_lib
 from sphere_jax.parallel import DEFAULT_CHUNK, in_slices, run_chunked, stream_chunked
@@ -66,11 +66,12 @@ class Bundle:
 
     # ---- patches ----------------------------------------------------------------------------
 
-    def supports(self, points, keypoints, radius=None, seed=0) -> "SupportStream":
+    def supports(self, points, keypoints, radius=None, seed=0, draw=DRAW) -> "SupportStream":
         """The unit-ball patches around ``keypoints`` (indices ``[K]`` or coordinates
-        ``[K, 3]``), drawn chunk by chunk (:class:`SupportStream`)."""
+        ``[K, 3]``), drawn chunk by chunk (:class:`SupportStream`; ``draw``: one of
+        :data:`~sphere_jax.data.patches.DRAWS`)."""
         return SupportStream(points, keypoints, self._radius(radius),
-                             self.config.data.n_points, seed, self.min_support)
+                             self.config.data.n_points, seed, self.min_support, draw)
 
     def patches(self, points, keypoints, radius=None, seed=0):
         """All unit-ball patches ``[K, N, 3]`` at once (every keypoint must have
@@ -117,7 +118,7 @@ class Bundle:
         out = stream_chunked(self._orient_fn, chain.make, chain.n, self._chunk(chunk), workers)
         return [s.scatter(o, (3, 3), on_invalid) for s, o in zip(chain.streams, chain.split(out))]
 
-    def _chain(self, clouds, radius, seed, on_invalid, frames=None):
+    def _chain(self, clouds, radius, seed, on_invalid, frames=None, draw=DRAW):
         """The clouds' :class:`SupportStream` chained (:class:`StreamChain`), ``frames``
         (one ``[K, 3, 3]`` per cloud, or None) attached, each checked for ``on_invalid``."""
         if isinstance(clouds, (str, bytes, np.ndarray)) or not hasattr(clouds, "__len__") \
@@ -131,7 +132,7 @@ class Bundle:
                                     f"({len(clouds)})", checks.shown(frames))
         streams = []
         for j, (points, keypoints) in enumerate(clouds):
-            stream = self.supports(points, keypoints, radius, seed)
+            stream = self.supports(points, keypoints, radius, seed, draw)
             if frames is not None:
                 if not self.spec.describe_frames:
                     raise checks.InputError("frames", f"None for a {self.kind} bundle (it "
@@ -176,19 +177,20 @@ class Bundle:
         return open3d_feature(out)
 
     def describe_clouds(self, clouds, radius=None, chunk=None, seed=0, frames=None,
-                        workers=None, on_invalid="raise", whiten="auto"):
+                        workers=None, on_invalid="raise", whiten="auto", draw=DRAW):
         """:meth:`describe` of several clouds ``[(points, keypoints), ...]`` in one stream of
         chunks, as :meth:`orient_clouds`. ``frames``: None, one ``[K, 3, 3]`` per cloud, or
         an orienting bundle (Compass, same ``data.n_points``) run on each chunk's patches in
         the same jitted call as the descriptor: one support draw and one stream for both
-        networks, the values of orienting first and describing in those frames after."""
+        networks, the values of orienting first and describing in those frames after.
+        ``draw``: how supports are drawn (:data:`~sphere_jax.data.supports.DRAW`)."""
         self._can("describe")
         checks.choice(on_invalid, "on_invalid", ON_INVALID)
         white = self._whitening(whiten, frames is not None)
         fn = self._describe_fn
         if isinstance(frames, Bundle):
             fn, frames = self._framed_by(frames), None
-        chain = self._chain(clouds, radius, seed, on_invalid, frames)
+        chain = self._chain(clouds, radius, seed, on_invalid, frames, draw)
         out = stream_chunked(fn, chain.make, chain.n, self._chunk(chunk), workers)
         if chain.n == 0:                          # nothing to describe: the width still counts
             unit = jax.ShapeDtypeStruct((1, self.config.data.n_points, 3), jnp.float32)

@@ -148,6 +148,20 @@ def test_several_clouds_are_a_list_of_pairs_with_one_result_each(sound_bundle):
     assert [f.shape for f in two] == [(4, 3, 3), (3, 3, 3)]
 
 
+def test_describing_draws_supports_evenly_unless_asked_to_draw_as_training(sound_bundle):
+    """The default draw is 'even'; draw='random' (what the whitening is fitted on) gives the
+    supports training draws, and another word is refused by name."""
+    bundle = api.load_bundle(sound_bundle)
+    kp = np.arange(6)
+    even = bundle.describe_clouds([(CLOUD, kp)], radius=0.3)[0]
+    np.testing.assert_array_equal(even, bundle.describe_clouds([(CLOUD, kp)], radius=0.3,
+                                                               draw="even")[0])
+    random = bundle.describe_clouds([(CLOUD, kp)], radius=0.3, draw="random")[0]
+    assert np.abs(random - even).max() > 1e-3
+    with pytest.raises(sphere_jax.SphereJaxError, match="draw must be one of"):
+        bundle.describe_clouds([(CLOUD, kp)], radius=0.3, draw="grid")
+
+
 def test_too_small_supports_are_reported_never_described(sound_bundle):
     bundle = api.load_bundle(sound_bundle)
     lonely = np.concatenate([CLOUD, [[5, 5, 5], [5.01, 5, 5]]]).astype(np.float32)
