@@ -50,7 +50,8 @@ def base(size: str) -> ml_collections.ConfigDict:
         voxel=0.02,               # fragments voxel-downsampled at 2 cm (seed 4.3)
         keypoint_leaf=0.10,       # one keypoint every 10 cm (seed 3.1.5)
         radius=0.30,              # support radius (3DMatch)
-        n_points=1225,            # points per patch, drawn with replacement
+        n_points=1225,            # points per patch: drawn with replacement in training,
+                                  # evenly when describing (data/supports.py)
         min_points=300,           # supports with fewer points are skipped
         val_fraction=0.1,         # keypoints held out for the validation loss
         occlusion=True,           # occlude the rotated copy (seed 3.1.5)

@@ -59,7 +59,8 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
         stays bounded for any K and the function compiles once.
       workers: chunks run at a time (default: one per core, at most 4; see
         :func:`sphere_jax.parallel.run_chunked`); memory grows with it.
-      seed: seed of the patch resampling (N points drawn with replacement per support).
+      seed: seed of the patch resampling (N points drawn evenly from each support from one
+        random offset: ``sphere_jax.data.supports.DRAW``).
       on_invalid: a keypoint whose support holds fewer than the bundle's ``min_support``
         points (16) cannot be oriented: ``"raise"`` (default) raises an error saying which;
         ``"mask"`` returns ``(frames, valid)``, their frames NaN and ``valid [K]`` False.
