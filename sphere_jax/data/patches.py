@@ -101,7 +101,7 @@ class Supports:
 # give two noisy signals). 'even': N evenly spaced positions in the support's list from one
 # random offset, so every point is drawn N // c or N // c + 1 times when c <= N, and N spread
 # over the list (the k-d tree's spatial order) when c > N. On the 14 redkitchen 3DMatch pairs
-# 'even' lifts LEAD (Compass)'s inlier ratio by 11 % and LEAD (FLARE)'s by 8 %, more than
+# 'even' lifts LEAD (Compass)'s inlier ratio by 11 % and LEAD (FLARE)'s by 7 %, more than
 # 4096 random draws do (docs/evaluation.md, "How supports are drawn"), at no cost.
 DRAWS = ("random", "even")
 
