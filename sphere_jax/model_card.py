@@ -150,8 +150,7 @@ def render(bundle_dir):
         out += [f"- wall time of the training loop: "
                 f"{wall_time_s(lines, train.batch_size) / 60:.1f} min"]
     folders = data.get("folders", {})
-    unit = _unit(data)
-    out += ["- data: " + ", ".join(f"`{k}` ({v} {unit}{'s' * (v != 1)})" if v is not None
+    out += ["- data: " + ", ".join(f"`{k}` ({_counted(v, data)})" if v is not None
                                    else f"`{k}`" for k, v in folders.items())]
     if "keypoints" in data:
         out += [f"- keypoints: {data['keypoints'].get('train')} training, "
@@ -186,15 +185,17 @@ def render(bundle_dir):
     return os.path.join(bundle_dir, CARD)
 
 
-def _unit(data) -> str:
-    return "shape" if data.get("kind") == "shapes" else "scan"
+def _counted(n, data) -> str:
+    """``n`` scans or shapes of a training-data statement: '1 scan', '12 scans'."""
+    unit = "shape" if data.get("kind") == "shapes" else "scan"
+    return f"{n} {unit}{'s' * (n != 1)}"
 
 
 def _trained_on(config, data) -> str:
     """The training data in one cell: the config's ``data.root`` as it was given (the card
     lists every folder) and how many scans or shapes it held."""
     counts = [v for v in data.get("folders", {}).values() if v is not None]
-    total = f" ({sum(counts)} {_unit(data)}{'s' * (sum(counts) != 1)})" if counts else ""
+    total = f" ({_counted(sum(counts), data)})" if counts else ""
     root = str(config.data.get("root", "")) or ", ".join(data.get("folders", {}))
     return f"`{root}`{total}"
 
