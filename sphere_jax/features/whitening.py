@@ -140,9 +140,16 @@ def save(bundle_dir, whitenings: dict, statement: dict):
 
 
 def load(bundle_dir) -> dict:
-    """``{source: Whitening}`` of a bundle folder (empty when it has none)."""
+    """``{source: Whitening}`` of a bundle folder (empty when it has none). A bundle whose
+    ``whitening.json`` states fitted whitenings but whose ``whitening.npz`` is missing (a
+    partial copy, an install without the package data) is a :class:`BundleError`, never a
+    silent fall-back to raw descriptors."""
     path = os.path.join(str(bundle_dir), FILE)
     if not os.path.isfile(path):
+        stated = read_statement(bundle_dir)
+        if stated:
+            raise checks.BundleError(bundle_dir, f"its {STATEMENT} states the whitening of "
+                                     f"{', '.join(sorted(stated))} but {FILE} is missing")
         return {}
     try:
         with np.load(path) as z:

@@ -67,6 +67,12 @@ def test_files_round_trip_keep_other_sources_and_name_a_bad_file(tmp_path):
     (tmp_path / whitening.FILE).write_bytes(b"not an npz")
     with pytest.raises(sphere_jax.SphereJaxError, match="whitening.npz does not read"):
         whitening.load(tmp_path)
+    # A copy (an install) with the statement but not the arrays never describes unwhitened.
+    (tmp_path / whitening.FILE).unlink()
+    with pytest.raises(sphere_jax.SphereJaxError,
+                       match="whitening.json states the whitening of compass, default but "
+                             "whitening.npz is missing"):
+        whitening.load(tmp_path)
 
 
 def _so3_maps(n, b, seed=0):
