@@ -21,7 +21,10 @@ def resolve_config_arg(argv):
     mains accept experiment names as well as paths; an unknown name is a ConfigError listing
     the known ones."""
     from sphere_jax.checks import ConfigError
-    out = []
+    out, argv = [], list(argv)
+    for k in range(len(argv) - 1, 0, -1):          # '--config NAME', as absl also reads it
+        if argv[k - 1] == "--config" and not argv[k].startswith("-"):
+            argv[k - 1:k + 1] = [f"--config={argv[k]}"]
     for a in argv:
         m = re.fullmatch(r"--config=([A-Za-z_][A-Za-z0-9_]*)(:[A-Za-z0-9_]+)?", a)
         if m:

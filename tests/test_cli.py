@@ -27,6 +27,8 @@ def run(*args, cwd=ROOT):
     (["experiments.train", "--config=leed"], "train: error: --config must be one of ablation, "),
     (["experiments.train", "--config=lead:huge"],
      "must be one of ('paper', 'mid', 'small', 'tiny'); got 'huge'"),
+    (["experiments.train", "--config", "lead:huge"],              # a space, not '='
+     "must be one of ('paper', 'mid', 'small', 'tiny'); got 'huge'"),
     (["experiments.train", "--config=lead:tiny", "--config.train.steps=-5"],
      "train: error: config.train.steps must be an integer >= 1; got -5"),
     (["experiments.train", "--config=lead:tiny", "--config.train.learning_rate=nan"],
@@ -67,6 +69,13 @@ def test_bad_command_lines_are_one_line_and_status_2(args, message, tmp_path):
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], out.stderr
     assert not (tmp_path / "w").exists()
+
+
+def test_an_unknown_scene_is_one_line_naming_the_scenes(tmp_path):
+    out = run("experiments.evaluate", "--config=eval_registration:quick",
+              "--config.data.scenes=nosuch", f"--workdir={tmp_path / 'w'}")
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "config.data.scenes must be comma-separated scene names among" in out.stderr
 
 
 @pytest.mark.parametrize("args, message", [

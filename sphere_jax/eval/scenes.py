@@ -191,8 +191,8 @@ def pair_sets(config):
         wanted = [s.strip() for s in config.data.scenes.split(",") if s.strip()]
         unknown = sorted(set(wanted) - {s.name for s in sets})
         if unknown:
-            raise ValueError(f"data.scenes names {unknown} not among "
-                             f"{[s.name for s in sets]}")
+            raise checks.ConfigError("config.data.scenes", "comma-separated scene names "
+                                     f"among {[s.name for s in sets]}", config.data.scenes)
         sets = [s for s in sets if s.name in wanted]
     out = []
     for s in sets:

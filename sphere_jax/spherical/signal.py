@@ -26,6 +26,7 @@ import numpy as np
 import jax
 import jax.numpy as jnp
 
+from sphere_jax import checks
 from sphere_jax.spherical import so3
 
 # A point closer to the keypoint than this fraction of the radius has no usable direction.
@@ -162,5 +163,8 @@ def _check_points(x, name, batched):
 
 
 def _check_radius(radius):
-    if not isinstance(radius, jax.core.Tracer) and not float(radius) > 0:
-        raise ValueError(f"radius must be a positive number, got {radius!r}")
+    if isinstance(radius, jax.core.Tracer):
+        return
+    if np.ndim(radius) != 0 or np.asarray(radius).dtype.kind not in "iuf" \
+            or not float(radius) > 0:
+        raise ValueError(f"radius must be one positive number, got {checks.shown(radius)}")

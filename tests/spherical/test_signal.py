@@ -104,7 +104,9 @@ def test_bad_inputs():
 
 
 def test_bad_radius():
-    with pytest.raises(ValueError, match="radius must be a positive number"):
+    with pytest.raises(ValueError, match="radius must be one positive number"):
         signal.patch_signal(np.ones((10, 3), np.float32), 0.0, 4)
-    with pytest.raises(ValueError, match="radius must be a positive number"):
+    with pytest.raises(ValueError, match="radius must be one positive number"):
         signal.patch_signals(np.ones((1, 10, 3), np.float32), float("nan"), 4)
+    with pytest.raises(ValueError, match=r"one positive number, got an array of shape \(2,\)"):
+        signal.patch_signals(np.ones((2, 10, 3), np.float32), np.array([0.3, 0.3]), 4)

@@ -60,6 +60,8 @@ def read_off(path) -> Cloud:
         n_v, n_f = int(rest[0]), int(rest[1])
     except (ValueError, IndexError):
         raise DataError(path, f"bad counts {' '.join(rest)!r}", rows[0][0]) from None
+    if n_v < 0 or n_f < 0:
+        raise DataError(path, f"negative counts: {n_v} vertices, {n_f} faces", rows[0][0])
     if len(body) < n_v + n_f:
         raise DataError(path, f"truncated: {n_v} vertices + {n_f} faces announced, "
                               f"{len(body)} rows found", body[-1][0] if body else None)

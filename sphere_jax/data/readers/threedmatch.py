@@ -59,6 +59,8 @@ def read_gt_log(path):
     """``{(i, j): T [4, 4]}`` with ``p_i = T p_j``, and the fragment count of the header. Each
     T must be rigid: RᵀR = I within :data:`RIGID_TOL`, det R positive, last row 0 0 0 1."""
     out, n_total, where = _read_blocks(path, 4)
+    if not out:
+        raise DataError(path, "holds no pair (an empty or header-only ground-truth log)")
     for pair, t in out.items():
         r = t[:3, :3]
         err = np.abs(r.T @ r - np.eye(3)).max()

@@ -83,6 +83,7 @@ def _write(tmp_path, name, data):
     ("b.pcd", b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n" + bytes(12),
      "truncated"),
     ("t.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n", "truncated"),
+    ("n.off", "OFF\n-3 0 0\n", "line 1: negative counts: -3 vertices"),
     ("f.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "outside"),
     ("r.txt", "1,2,3,0,0,1\n1,2,3\n", "expected 3 or 6"),
     ("e.txt", "\n", "empty"),

@@ -77,7 +77,9 @@ def test_empty_or_foreign_ground_truth_is_refused(tmp_path):
     ply.write_ply(tmp_path / "cloud_bin_0.ply", np.zeros((4, 3), np.float32))
     ply.write_ply(tmp_path / "cloud_bin_1.ply", np.zeros((4, 3), np.float32))
     (tmp_path / "gt.log").write_text("")
-    with pytest.raises(io.DataError, match="no pairs: the ground truth is empty"):
+    with pytest.raises(io.DataError, match="gt.log: holds no pair"):
+        threedmatch.read_gt_log(tmp_path / "gt.log")
+    with pytest.raises(io.DataError, match="holds no pair"):
         threedmatch.load_fragment_scene(tmp_path)
     threedmatch.write_gt_log(tmp_path / "gt.log", {(5, 7): np.eye(4)}, 8)
     with pytest.raises(io.DataError, match=r"none of its 1 pairs has both clouds .*\[0, 1\]"):
