@@ -72,9 +72,11 @@ def test_lead_gt_gives_corresponding_patches_one_pose(moved_pair):
     print(f"relative error: redrawn {floor:.3f}, turned {turned:.3f}, unturned {unturned:.3f}, "
           f"turned the wrong way {wrong:.3f}")
     # Turned keeps the network's own equivariance error on top of the redraw (the patch
-    # signal is sampled on a grid that does not turn with the patch): 1.3x the floor on the
-    # redkitchen scan, 1.9x on the embedded room.
-    assert turned < 2.5 * floor and min(unturned, wrong) > 4 * turned
+    # signal is sampled on a grid that does not turn with the patch): a few per cent, which
+    # does not shrink with the floor (measured: redrawn 0.018 / turned 0.042 on the
+    # redkitchen scan, 0.009 / 0.052 on the denser embedded room), against a full rotation's
+    # 1.3-1.6 unturned or turned the wrong way.
+    assert floor < turned < 0.08 and min(unturned, wrong) > 15 * turned
 
 
 def test_ground_truth_diagnostics_are_refused_outside_the_pair_benchmark():
