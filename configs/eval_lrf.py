@@ -1,4 +1,5 @@
-"""LRF repeatability: Compass vs FLARE, SHOT's LRF, TOLDI and 3DSmoothNet's (thesis 3.2, Fig. 3.4).
+"""LRF repeatability: Compass vs FLARE, SHOT's LRF, TOLDI, 3DSmoothNet's and GFrames (thesis 3.2,
+Fig. 3.4).
 
     python -m experiments.evaluate --config=eval_lrf [--workdir=runs/eval_lrf]
     python -m experiments.evaluate --config=eval_lrf:stanford \\
@@ -19,7 +20,7 @@ from configs import eval_common
 def get_config(arg=None):
     c = eval_common.base("" if arg == "stanford" else arg)
     c.task = "lrf"
-    c.methods = "flare,shot,toldi,3dsn,compass"
+    c.methods = "flare,shot,toldi,3dsn,gframes,compass"
     c.rho = 0.97
     c.match_dist = c.data.voxel          # a keypoint of i corresponds to j's point this close
     c.data.n_keypoints = 1000

@@ -233,6 +233,29 @@ def threedsn_lrf_loop(points, centre, radius):
     return _toldi_frame(d, r, vecs[:, 0], radius)
 
 
+def gframes_lrf_loop(points, normals, centre, radius):
+    """GFrames on points: TOLDI's ẑ; x̂ the gradient of the normal deviation 1 − |n·ẑ|, a
+    plane fitted by weighted least squares in the tangent plane (spanned by the projections
+    of two fixed axes)."""
+    d, r, idx = _neighbours(points, centre, radius)
+    inner = d[r <= radius / 3]
+    c = inner - inner.mean(0)
+    z = np.linalg.eigh(c.T @ c)[1][:, 0]
+    if np.sum(d @ z) > 0:
+        z = -z
+    tangent = np.eye(3) - np.outer(z, z)
+    u = tangent @ [0.3, 0.5, 0.7]
+    u /= np.linalg.norm(u)
+    v = np.cross(z, u)
+    a = np.array([[1.0, di @ u, di @ v] for di in d])
+    f = np.array([1 - abs(normals[k] @ z) for k in idx])
+    w = np.sqrt(radius - r)
+    coef = np.linalg.lstsq(a * w[:, None], f * w, rcond=None)[0]
+    x = coef[1] * u + coef[2] * v
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], 1)
+
+
 def usc_loop(points, centre, radius, frame, radial=10, elevation=14, azimuth=14):
     """USC of one keypoint as PCL computes it: log-spaced shells from R/10, equal-angle
     elevation and azimuth bins, votes 1 / (density within R/5 · cube root of bin volume)."""

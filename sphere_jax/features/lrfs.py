@@ -13,6 +13,16 @@ Frames are ``[K, 3, 3]`` with columns x̂, ŷ, ẑ in world coordinates (the con
   eigenvector of the smallest eigenvalue of the scatter of *all* neighbours about the keypoint
   itself (TOLDI: the neighbours within R/3, about their centroid), turned the same way; x̂ as
   TOLDI's.
+* GFrames (Melzi et al. 2019): ẑ the normal (TOLDI's), x̂ the tangent gradient of a scalar
+  field over the support. On a mesh the paper differentiates an intrinsic field (mean
+  curvature, an eigenfunction); on points we take the **normal deviation**
+  ``f = 1 − |nᵢ·ẑ|`` of each neighbour's own normal from the keypoint's: it needs only the
+  normals every fragment has, is invariant to rotation and to the normals' signs, and grows
+  where the surface bends away from the keypoint's tangent plane — a curvature proxy whose
+  gradient points from the flat part of the support towards where it bends most. The gradient
+  is a weighted least-squares plane ``f ≈ a + g·t`` over the neighbours' tangent coordinates
+  ``t`` (weights ``R − d``); on a plane or a sphere, where ``f`` has no direction, x̂ is
+  arbitrary, as every LRF's is there.
 
 Keypoints with too few neighbours get NaN frames; callers count them as not repeatable.
 """
@@ -80,3 +90,29 @@ def _toldi_x(nb: Neighbourhoods, z_Kx3, valid_K):
     x = nb.sum(w[:, None] * tangent)
     x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
     return _frames(x, z, valid_K)
+
+
+def gframes_lrf(nb: Neighbourhoods, normals_Nx3, min_neighbours=5):
+    """GFrames' LRF for every keypoint of ``nb`` -> ``[K, 3, 3]``; ``normals_Nx3``: the cloud's
+    normals (any sign), indexed by ``nb.index``."""
+    inner = nb.within(nb.radius / 3.0)
+    n_inner = np.maximum(inner.counts, 1)[:, None]
+    centred = inner.local - (inner.sum(inner.local) / n_inner)[inner.owner]
+    _, vecs = np.linalg.eigh(_outer_sum(inner, centred, np.ones(len(centred))))
+    z = vecs[:, :, 0]
+    z = np.where((np.sum(nb.sum(nb.local) * z, axis=1) > 0)[:, None], -z, z)
+    # Any orthonormal tangent basis (e1, e2): the fitted gradient does not depend on it.
+    e1 = np.cross(z, np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(z, e1)
+    field = 1.0 - np.abs(np.sum(np.asarray(normals_Nx3, np.float64)[nb.index] * z[nb.owner],
+                                axis=1))
+    design = np.stack([np.ones(len(nb.local)), np.sum(nb.local * e1[nb.owner], axis=1),
+                       np.sum(nb.local * e2[nb.owner], axis=1)], axis=1)     # [M, 3]
+    w = np.maximum(nb.radius - nb.dist, 0.0)
+    normal_eq = _outer_sum(nb, design, w) + 1e-12 * np.eye(3)
+    rhs = nb.sum((w * field)[:, None] * design)
+    coef = np.linalg.solve(normal_eq, rhs[:, :, None])[:, :, 0]
+    x = coef[:, 1:2] * e1 + coef[:, 2:3] * e2
+    x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
+    return _frames(x, z, (nb.counts >= min_neighbours) & (inner.counts >= 3))

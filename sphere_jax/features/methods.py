@@ -178,6 +178,8 @@ def lrf(name, radius, bundles=None, chunk=None):
         return lambda f, idx: lrfs.toldi_lrf(neighbourhoods(f, idx, radius))
     if name == "3dsn":
         return lambda f, idx: lrfs.threedsn_lrf(neighbourhoods(f, idx, radius))
+    if name == "gframes":
+        return lambda f, idx: lrfs.gframes_lrf(neighbourhoods(f, idx, radius), f.normals)
     if bundles_needed([name], bundles):
         raise ValueError(f"LRF {name!r} needs a {name} bundle in 'bundles'")
     model = _bundle(bundles[name])

@@ -69,8 +69,8 @@ METHODS = (
 )
 
 # Local reference frames: (key, bundle kinds needed).
-LRFS = {"flare": (), "shot": (), "toldi": (), "3dsn": (), "compass": ("compass",),
-        "sound": ("sound",)}
+LRFS = {"flare": (), "shot": (), "toldi": (), "3dsn": (), "gframes": (),
+        "compass": ("compass",), "sound": ("sound",)}
 
 _BY_SPELLING = {s: m for m in METHODS for s in (m.name, m.key) + m.aliases}
 

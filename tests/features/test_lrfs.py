@@ -5,6 +5,7 @@ import pytest
 from sphere_jax.data import augment, patches
 from sphere_jax.features import lrfs
 from sphere_jax.features.neighbourhood import radius_neighbourhoods
+from sphere_jax.registration import fragments
 from tests import reference
 from tests.eval import _fixtures
 
@@ -14,23 +15,36 @@ def kitchen_points():
     return patches.voxel_downsample(_fixtures.kitchen_or_embedded().load(0), 0.02)
 
 
-@pytest.mark.parametrize("name", ["shot", "toldi", "threedsn"])
-def test_matches_loop_reference_on_scan_points(kitchen_points, name):
+@pytest.fixture(scope="module")
+def kitchen_normals(kitchen_points):
+    return fragments.estimate_normals(kitchen_points.astype(np.float64))
+
+
+def _lrf(name, nb, normals):
+    fn = getattr(lrfs, f"{name}_lrf")
+    return fn(nb, normals) if name == "gframes" else fn(nb)
+
+
+@pytest.mark.parametrize("name", ["shot", "toldi", "threedsn", "gframes"])
+def test_matches_loop_reference_on_scan_points(kitchen_points, kitchen_normals, name):
     pts = kitchen_points.astype(np.float64)
     kp = np.random.default_rng(0).choice(len(pts), 20, replace=False)
     nb = radius_neighbourhoods(pts, pts[kp], 0.3)
-    fast = getattr(lrfs, f"{name}_lrf")(nb)
-    slow = np.stack([getattr(reference, f"{name}_lrf_loop")(pts, pts[k], 0.3) for k in kp])
+    fast = _lrf(name, nb, kitchen_normals)
+    loop = getattr(reference, f"{name}_lrf_loop")
+    slow = np.stack([loop(pts, kitchen_normals, pts[k], 0.3) if name == "gframes" else
+                     loop(pts, pts[k], 0.3) for k in kp])
     assert np.max(np.abs(fast - slow)) < 1e-9
 
 
-@pytest.mark.parametrize("name", ["shot", "toldi", "threedsn"])
-def test_frames_are_rotations_and_rotate_with_the_cloud(kitchen_points, name):
+@pytest.mark.parametrize("name", ["shot", "toldi", "threedsn", "gframes"])
+def test_frames_are_rotations_and_rotate_with_the_cloud(kitchen_points, kitchen_normals, name):
     pts = kitchen_points.astype(np.float64)
     kp = np.random.default_rng(1).choice(len(pts), 500, replace=False)
     rot = augment.random_rotations(np.random.default_rng(2))
-    f = getattr(lrfs, f"{name}_lrf")(radius_neighbourhoods(pts, pts[kp], 0.3))
-    g = getattr(lrfs, f"{name}_lrf")(radius_neighbourhoods(pts @ rot.T, pts[kp] @ rot.T, 0.3))
+    f = _lrf(name, radius_neighbourhoods(pts, pts[kp], 0.3), kitchen_normals)
+    g = _lrf(name, radius_neighbourhoods(pts @ rot.T, pts[kp] @ rot.T, 0.3),
+             kitchen_normals @ rot.T)
     ok = np.all(np.isfinite(f), axis=(1, 2))
     assert ok.mean() > 0.99
     assert np.max(np.abs(np.einsum("kji,kjl->kil", f[ok], f[ok]) - np.eye(3))) < 1e-9
