@@ -124,7 +124,8 @@ def register(source, target, method=None, voxel="auto", radius="auto", n_keypoin
     adaptation of the method's networks to these two scans first, without labels (kept in
     ``adapt_workdir``; two networks adapt side by side in processes of their own, so a script
     calls this under ``if __name__ == "__main__":``). ``limits``: ``min_inliers``,
-    ``min_fitness`` (below them the result is a failure). Details: :func:`sphere_jax.align.register`.
+    ``min_fitness`` (below them the result is a failure). Details:
+    :func:`sphere_jax.align.register`.
 
     Returns:
       :class:`sphere_jax.align.Registration`: ``transform`` (4×4, ``p_target = T p_source``),

@@ -8,8 +8,9 @@ A bundle is a folder::
 
 A bundle is written whole into a temporary folder beside it and swapped in
 (:func:`sphere_jax.files.swap_folders`): a full disk or a kill mid-write leaves the previous
-bundle as it was. A folder whose ``config.json`` is missing is not a bundle. :func:`sphere_jax.api.load_bundle`
-turns a folder into a model; this module only reads and writes the files.
+bundle as it was. A folder whose ``config.json`` is missing is not a bundle.
+:func:`sphere_jax.api.load_bundle` turns a folder into a model; this module only reads and writes
+the files.
 """
 from __future__ import annotations
 

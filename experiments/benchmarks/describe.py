@@ -14,9 +14,9 @@ real scans) at ``--keypoints`` keypoints:
 * ``register_s``: :func:`sphere_jax.register` end to end on one real pair (redkitchen 5 → 0),
   cold (compilation included, as a user's first call), its stages in ``register_stages``
   and the keypoints it described per scan in ``register_described`` (it stops at the first
-  share of them that registers with confidence); ``register_warm_s`` the same in a second process that finds the
-  first's compiled programs on disk (:mod:`sphere_jax.compile_cache`), as a user's next
-  ``experiments.register``.
+  share of them that registers with confidence); ``register_warm_s`` the same in a second process
+  that finds the first's compiled programs on disk (:mod:`sphere_jax.compile_cache`), as a user's
+  next ``experiments.register``.
 """
 from __future__ import annotations
 

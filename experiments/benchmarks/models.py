@@ -4,7 +4,8 @@ LEAD/SOUND description time per keypoint for 5000 keypoints of the 3DMatch kitch
 (when the real scans are present), with the fused inference path of
 :mod:`sphere_jax.spherical.fused` (the default) and layer by layer (``unfused``), with
 ``describe_workers`` chunks of the config's ``infer_chunk`` keypoints run at a time
-(:func:`sphere_jax.parallel.run_chunked`). ``--only=lead`` keeps the configs whose name contains it."""
+(:func:`sphere_jax.parallel.run_chunked`). ``--only=lead`` keeps the configs whose name contains
+it."""
 from __future__ import annotations
 
 import importlib

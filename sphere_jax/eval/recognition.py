@@ -5,8 +5,8 @@ in each test frame: [Saliency Boost: keep the points whose pixels are salient] �
 (uniform sampling, or ISS) → descriptors (any method of :mod:`methods`, scaled to unit
 length) → nearest model descriptor under a distance threshold → geometric consistency
 grouping (Chen & Bhanu 2007, as PCL's ``GeometricConsistencyGrouping``) → a pose per group
-(Kabsch) → the model projected to a 2-D box. A detection is correct if its instance is in the frame with IoU ≥ 0.25; ranking
-detections by group size gives the precision–recall curve and its AUC.
+(Kabsch) → the model projected to a 2-D box. A detection is correct if its instance is in the frame
+with IoU ≥ 0.25; ranking detections by group size gives the precision–recall curve and its AUC.
 """
 from __future__ import annotations
 

@@ -159,8 +159,8 @@ def _pair_descriptors(name, describe, frags, pair_set, progress, agree=None, scr
     """``({(i, j): (desc_i, desc_j)}, keypoints described, {(i, j): Vote})``: each scan
     described once, or, for a ground-truth diagnostic (``describe.describe_pair``), both scans
     of every pair in that pair's frames, or, for a voted method, in the frames its first pass
-    voted (``screen`` ranks the vote's candidates, the pass ``agree`` scores higher is kept). Wrong counts and non-finite values are
-    refused, naming the method."""
+    voted (``screen`` ranks the vote's candidates, the pass ``agree`` scores higher is kept). Wrong
+    counts and non-finite values are refused, naming the method."""
     describe_pair = getattr(describe, "describe_pair", None)
     bar = lambda items: tqdm(items, desc=f"{pair_set.name}: {name}", disable=not progress)
     votes = {}

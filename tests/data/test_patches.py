@@ -81,7 +81,8 @@ def test_bad_inputs():
         patches.extract_patches(np.zeros((5, 2)), [0], 0.1, 8, rng)
     with pytest.raises(ValueError, match="non-finite"):
         patches.voxel_downsample(np.array([[0, 0, np.nan]]), 0.1)
-    with pytest.raises(ValueError, match=r"keypoints must be indices in 0..4 \(points has 5\); got indices from 7"):
+    with pytest.raises(ValueError, match=r"keypoints must be indices in 0..4 \(points has 5\); "
+                                         r"got indices from 7"):
         patches.extract_patches(np.zeros((5, 3)), [7], 0.1, 8, rng)
     with pytest.raises(ValueError, match="points must be a non-empty cloud"):
         patches.uniform_keypoints(np.zeros((0, 3)), 0.1)

@@ -1,5 +1,4 @@
 """LEAD: the encoder's SO(3) descriptor map rotates with the patch."""
-import jax
 
 from sphere_jax import models
 from tests import reference

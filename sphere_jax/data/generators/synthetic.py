@@ -365,7 +365,8 @@ def default_root(kind, seed=0):
 
 
 def training_rooms_dir(seed):
-    """The 3DMatch-layout folder of the training rooms of ``seed`` (:func:`ensure_training_rooms`)."""
+    """The 3DMatch-layout folder of the training rooms of ``seed``
+    (:func:`ensure_training_rooms`)."""
     return os.path.join(paths.cache_root(), f"rooms-v{DATA_VERSION}-seed{int(seed)}", "3dmatch")
 
 

@@ -68,7 +68,8 @@ def read_pcd(path) -> Cloud:
             table = np.array(b" ".join(rows).split(), np.float64)
         except ValueError:
             bad = next(k for k, r in enumerate(rows) if not _numbers(r))
-            raise DataError(path, f"non-numeric value in row {rows[bad].decode('ascii', 'replace')!r}",
+            row = rows[bad].decode("ascii", "replace")
+            raise DataError(path, f"non-numeric value in row {row!r}",
                             line_no + 1 + bad) from None
         if table.size != n * width:
             bad = next((k for k, r in enumerate(rows) if len(r.split()) != width), 0)
