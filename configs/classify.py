@@ -1,14 +1,15 @@
 """Shape classification with PointNet (no T-nets), the classifier of the rotation-invariant
-classification experiment (thesis 3.3), trained on canonical-pose shapes.
+classification experiment (thesis 3.3), trained in canonical pose without rotation augmentation.
 
+    python -m experiments.train --config=classify:mid --workdir=runs/classify_mid   # shipped
     python -m experiments.train --config=classify:small --workdir=runs/classify_small
-    python -m experiments.train --config=classify:small \
-        --config.orient_bundle=runs/compass_shapes_small/bundle
 
-With ``orient_bundle`` (a whole-shape Compass, ``--config=compass_shapes``) every shape is
-turned to its Compass frame first. Expected on the embedded 12-class shape set: validation
-accuracy well above chance (1/12). The NR/AR comparison of plain and Compass-oriented PointNet
-is the evaluation ``--config=eval_classification`` (``python -m experiments.evaluate``).
+'mid' is the recipe of the shipped plain-PointNet bundle ``pointnet_mid``: the training part of
+ModelNet40's train release (``ShapeSource``'s splits; validation on its own part). With
+``orient_bundle`` (a whole-shape Compass; ``configs/classify_compass.py``) every shape is
+turned into its Compass frame first. The NR/AR table is ``--config=eval_classification``
+(``python -m experiments.evaluate``). Expected on the embedded 12-class shape set ('small'):
+validation accuracy well above chance (1/12).
 """
 from configs import common
 
@@ -18,11 +19,14 @@ def get_config(arg=None):
     c = common.base(size)
     c.model = "classify"
     c.orient_bundle = ""              # a whole-shape Compass bundle: shapes in its frames
-    c.data.root = ""                 # the embedded shape set, or a ModelNet40 folder
+    c.data.root = common.MODELNET_TRAIN if size == "mid" else ""   # '': the embedded shapes
     c.data.n_points = {"paper": 2048, "mid": 1024, "small": 512, "tiny": 64}[size]
     c.data.rotate = False            # train in canonical pose
-    c.data.holdout_every = 0         # k > 0: a set without test list tests on each k-th shape
+    common.shape_splits(c)
     c.train.batch_size = {"paper": 32, "mid": 32, "small": 16, "tiny": 4}[size]
+    if size == "mid":                # the shipped bundle's recipe: ~25 epochs of 6299 shapes
+        c.train.update(steps=5000, learning_rate=1e-3, schedule="warmup_cosine",
+                       warmup_steps=200, final_lr_fraction=0.01, eval_batches=16)
     c.model_kwargs = {
         "paper": dict(features=(64, 64, 64, 128, 1024), head=(512, 256)),
         "mid": dict(features=(64, 64, 64, 128, 512), head=(256, 128)),

@@ -1,32 +1,38 @@
-"""Rotation-invariant classification (thesis 3.3): PointNet alone and on shapes oriented by
-Compass, both trained on canonical-pose shapes, tested in canonical pose (NR) and with every
-test shape turned by a seeded random rotation (AR).
+"""Rotation-invariant classification (thesis 3.3): PointNet alone, on shapes oriented by
+Compass, and Compass + PointNet trained on turned shapes, tested in canonical pose (NR) and
+with every test shape turned by a seeded random rotation (AR).
 
-    python -m experiments.evaluate --config=eval_classification:small
-    python -m experiments.evaluate --config=eval_classification:small \
-        --config.data.root=/data/modelnet40_normal_resampled
+    python -m experiments.evaluate --config=eval_classification:mid \
+        --workdir=runs/classification_modelnet                     # the shipped classifiers
+    python -m experiments.evaluate --config=eval_classification:small   # trains its own
 
-Trains one PointNet per method (``workdir/<method>/``, the ``classify`` config at this size),
-then writes classification.csv (method, split, accuracy) and classification.md. What it
-measures: whether orienting shapes by Compass makes a classifier trained in canonical pose
-as accurate on rotated shapes (AR) as on canonical ones (NR); plain PointNet loses most of
-its accuracy in AR. ModelNet40's 102 / 25 split of ``../shared/data``:
-``--config.data.holdout_every=3``. The Compass bundle is the shipped whole-shape one
-(``--config=compass_shapes``), or ``--config.compass_bundle=PATH``.
-
-``--config.compass_train_rotated=True`` trains Compass + PointNet on randomly turned shapes
-instead (oriented by Compass like the test shapes); off by default.
+At 'mid' it scores the shipped classifier bundles (``classify``, ``classify_compass``,
+``classify_compass_rotated`` recipes) on the test split of ModelNet40's train release
+(``ShapeSource``: every 5th shape of each class; the classifiers and the whole-shape Compass
+never trained or chose a setting on it); at other sizes, or with
+``--config.classifiers.<method>=''``, it trains the method's classifier in
+``workdir/<method>`` with this config first. Writes classification.csv / .md (method, split,
+accuracy, the thesis's figure) and frames.csv: per class, the share of test shapes whose
+Compass frame turns with the shape (within 15°) and the AR accuracy on those and the rest.
 """
+import ml_collections
+
 from configs import classify
 from sphere_jax import paths
+
+CLASSIFIERS = {"pointnet": "pointnet", "compass+pointnet": "compass_pointnet",
+               "compass_train_rotated": "compass_pointnet_rotated"}
 
 
 def get_config(arg=None):
     c = classify.get_config(arg)
     c.task = "classification"
-    c.methods = "pointnet,compass+pointnet"
-    c.compass_bundle = paths.shipped_bundle("compass_shapes")
-    c.compass_train_rotated = False   # True: Compass + PointNet trains on randomly turned shapes
+    c.methods = "pointnet,compass+pointnet,compass_train_rotated"
+    c.compass_bundle = "compass_shapes"   # the shipped whole-shape Compass, or a bundle folder
+    # Each method's classifier bundle; '': train one here with this config.
+    c.classifiers = ml_collections.ConfigDict(
+        {m: (paths.shipped_bundle(name) if c.size == "mid" else "")
+         for m, name in CLASSIFIERS.items()})
     c.eval_rotation_seed = 0          # AR split: one seeded rotation per test shape
     c.rotate = False                  # no rotated variant of this benchmark (it has AR)
     return c

@@ -3,7 +3,7 @@ are generated from the runs' own files, so a rerun updates them.
 
     python -m experiments.publish RUN_DIR [RUN_DIR ...] [--headline=RUN_DIR]
         [--adaptation=BEFORE_RUN:AFTER_RUN ...] [--targets=MATCH,LOMATCH,ROTATED,LRF,LRF_BUNNY]
-        [--drop=SECTION_KEY ...] [--fresh]
+        [--classification=RUN_DIR] [--drop=SECTION_KEY ...] [--fresh]
 
 Each RUN_DIR is an ``experiments.evaluate`` workdir (its ``run.json`` says the command, the
 bundles and the date; its markdown and CSV hold the tables, a registration run's pair votes in
@@ -15,7 +15,8 @@ card (:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a ru
 shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
 ``adapt_steps``): a section compares them method by method and says what each bundle adapted on,
 for how long. ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured
-and met or not (:mod:`experiments.standing`).
+and met or not (:mod:`experiments.standing`); ``--classification`` its
+``classification-targets`` block from an ``eval_classification`` run.
 """
 from __future__ import annotations
 
@@ -320,11 +321,14 @@ def contents(sections):
 
 
 def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations=(),
-            targets=(), fresh=False, drop=()):
+            targets=(), fresh=False, drop=(), classification=None):
     """Write the given runs' sections into ``results`` — replacing those runs' sections
     there and keeping the others but those keyed in ``drop`` (``fresh``: only the given
     ones), so that one rerun updates its own table — then the README's headline and targets
-    blocks and the model cards."""
+    blocks and the model cards. The headline run is published as a section too, so that the
+    README, docs/results.md and the model cards never show two runs of one command."""
+    if headline and run_key(headline) not in {run_key(d) for d in run_dirs}:
+        run_dirs = [headline, *run_dirs]
     runs = [(d, *read_run(d)) for d in run_dirs]
     sections = [(run_key(d), section(record, md)) for d, record, md in runs]
     # An adaptation section is its adapted run's: published again with another 'before' run,
@@ -349,6 +353,12 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
         readme_block(readme, "targets", f"{standing.table(*targets)}\n\n`python -m "
                      f"experiments.publish ... --targets={','.join(targets)}` (the runs' "
                      f"commands and bundles: docs/results.md).")
+    if classification:
+        from experiments import standing
+        readme_block(readme, "classification-targets",
+                     f"{standing.classification_table(classification)}\n\n`python -m "
+                     f"experiments.publish ... --classification={classification}` (its "
+                     f"command, data and bundles: docs/results.md).")
     from sphere_jax import model_card
     for _, record, md in runs:
         for kind, b in record.get("bundles", {}).items():
@@ -373,6 +383,9 @@ def main(argv=None):
                         help="MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY[,LRF_KITCHEN_ADAPTED,"
                              "LRF_BUNNY_ADAPTED]: the redkitchen registration runs and the LRF "
                              "runs of the README's targets table (experiments/standing.py)")
+    parser.add_argument("--classification", default=None,
+                        help="the eval_classification run of the README's classification "
+                             "targets (experiments/standing.py)")
     parser.add_argument("--drop", action="append", default=[],
                         help="a section of docs/results.md to remove, by its key (the "
                              "'<!-- section: KEY -->' line): a run that no longer stands")
@@ -385,16 +398,18 @@ def main(argv=None):
         parser.error(f"--targets takes five runs, MATCH,LOMATCH,ROTATED,LRF_KITCHEN,"
                      f"LRF_BUNNY, and optionally the two LRF runs with adaptation; got "
                      f"{args.targets}")
-    if not (args.runs or args.adaptation or targets or args.headline or args.drop):
+    if not (args.runs or args.adaptation or targets or args.headline or args.drop
+            or args.classification):
         parser.error("nothing to publish: give run folders, --adaptation, --targets, "
-                     "--headline or --drop")
+                     "--classification, --headline or --drop")
     pairs = [tuple(a.split(":")) for a in args.adaptation]
     if any(len(p) != 2 for p in pairs):
         parser.error(f"--adaptation takes BEFORE_RUN:AFTER_RUN, got {args.adaptation}")
     with cli.refusals():
         try:
             print(publish(args.runs, args.headline, adaptations=pairs, targets=targets,
-                          fresh=args.fresh, drop=args.drop))
+                          fresh=args.fresh, drop=args.drop,
+                          classification=args.classification))
         except (FileNotFoundError, ValueError) as e:
             cli.fail(e)
 

@@ -310,19 +310,43 @@ def _cached_bundle(path, _stamp):
 
 
 def shape_orienter(path):
-    """:func:`orient_shapes` with the whole-shape Compass bundle at ``path``: what
+    """:class:`ShapeOrienter` of the whole-shape Compass bundle at ``path``: what
     :func:`sphere_jax.training.train_and_evaluate` takes as ``orient_shapes`` for a config
     with ``orient_bundle``."""
-    return functools.partial(orient_shapes, cached_bundle(path))
+    return ShapeOrienter(cached_bundle(path), bundle_files.fingerprint(bundle_path(path)))
+
+
+@dataclasses.dataclass(frozen=True)
+class ShapeOrienter:
+    """Whole shapes → the same shapes in the canonical frames a whole-shape Compass bundle gives
+    them. ``key`` names the bundle's weights: caches of oriented shapes are keyed by it
+    (:mod:`sphere_jax.data.oriented`)."""
+    bundle: Bundle
+    key: str
+
+    def frames(self, shapes_BxNx3):
+        """``(centres [B, 1, 3], frames [B, 3, 3])``: :func:`shape_frames`."""
+        return shape_frames(self.bundle, shapes_BxNx3)
+
+    def __call__(self, shapes_BxNx3):
+        return orient_shapes(self.bundle, shapes_BxNx3)
+
+
+def shape_frames(bundle, shapes_BxNx3):
+    """Compass's frame of each whole shape, ``(centres [B, 1, 3], frames [B, 3, 3])`` (columns
+    x̂ ŷ ẑ in the shapes' coordinates). A shape with more points than the network reads
+    (``config.data.n_points``) gives it an even subsample, the same points in any pose."""
+    shapes_BxNx3 = np.asarray(shapes_BxNx3, np.float32)
+    n, have = bundle.config.data.n_points, shapes_BxNx3.shape[1]
+    pick = np.linspace(0, have, n, endpoint=False).astype(np.int64)
+    unit, centres = patch_lib.unit_shapes(shapes_BxNx3)
+    frames = np.asarray(bundle.orient_patches(unit[:, pick], chunk=min(len(unit), 256)))
+    return centres, frames
 
 
 def orient_shapes(bundle, shapes_BxNx3):
     """Shapes turned into the canonical frame a Compass bundle (trained on whole shapes)
     gives them: ``(p − centre) @ F``, in the shapes' own units."""
-    shapes_BxNx3 = np.asarray(shapes_BxNx3, np.float32)
-    n = bundle.config.data.n_points
-    rng = np.random.default_rng(0)
-    pick = rng.integers(0, shapes_BxNx3.shape[1], n)            # the network's point count
-    unit, centres = patch_lib.unit_shapes(shapes_BxNx3)
-    frames = np.asarray(bundle.orient_patches(unit[:, pick], chunk=min(len(unit), 256)))
-    return np.einsum("bnk,bkj->bnj", shapes_BxNx3 - centres, frames).astype(np.float32)
+    centres, frames = shape_frames(bundle, shapes_BxNx3)
+    return np.einsum("bnk,bkj->bnj", np.asarray(shapes_BxNx3, np.float32) - centres,
+                     frames).astype(np.float32)

@@ -78,9 +78,18 @@ def weights_root():
                                             "weights"))
 
 
-# The shipped bundle of each model kind: the evaluations' defaults and the examples' bundles.
+# The shipped bundles by name (a model kind, or a classifier's method): the evaluations'
+# defaults and the examples' bundles.
 SHIPPED = {"compass": "compass_mid", "lead": "lead_mid", "lead_pn": "lead_pn_mid",
-           "sound": "sound_mid", "compass_shapes": "compass_shapes_mid"}
+           "sound": "sound_mid", "compass_shapes": "compass_shapes_mid",
+           "pointnet": "pointnet_mid", "compass_pointnet": "compass_pointnet_mid",
+           "compass_pointnet_rotated": "compass_pointnet_rotated_mid"}
+# The config (``configs/<name>.py``) whose 'mid' size is each shipped bundle's whole recipe:
+# ``python -m experiments.train --config=<config>:mid`` trains it (tests/test_weights.py).
+RECIPES = {"compass": "compass", "lead": "lead", "lead_pn": "lead_pn", "sound": "sound",
+           "compass_shapes": "compass_shapes", "pointnet": "classify",
+           "compass_pointnet": "classify_compass",
+           "compass_pointnet_rotated": "classify_compass_rotated"}
 
 
 def shipped_bundle(name, required=False):

@@ -28,7 +28,8 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
     card = (path / model_card.CARD).read_text()
     assert "python -m experiments.train --config=lead:tiny" in card
     assert "steps: 2 of 2 planned × batch 4" in card and "cosine decay to 0.1×" in card
-    assert "synth-room-s1-0` (12 scans)" in card and "evaluation scenes in the training data: none" in card
+    assert "synth-room-s1-0` (12 scans)" in card
+    assert "evaluation scenes in the training data: none" in card
     # The validation table has one row per evaluated step, with the logged figures.
     logged = [json.loads(ln) for ln in (tmp_path / "w" / "metrics.jsonl").read_text().splitlines()]
     assert [ln["step"] for ln in logged] == [1, 2]
@@ -46,7 +47,8 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
 
     readme = tmp_path / "README.md"
     readme.write_text(README)
-    out = publish.publish([str(tmp_path / "ev")], headline=str(tmp_path / "ev"),
+    # The headline run alone: its section and the cards follow it, never another run of it.
+    out = publish.publish([], headline=str(tmp_path / "ev"),
                           results=str(tmp_path / "docs" / "results.md"), readme=str(readme))
     with open(tmp_path / "ev" / "results.csv") as f:
         lead_mean = next(r for r in csv.DictReader(f) if r["method"] == "lead"
@@ -238,7 +240,8 @@ def test_the_targets_table_says_what_is_met_and_by_how_much(tmp_path):
             "against 0.300 and 0.400 (1.17× and 0.87×) | **no** |") in text
     assert "| its correct matches per pair ≥ 1.5× SHOT's | 320 against 200 (1.60×) | yes |" in text
     assert "| its feature-match recall ≥ 0.95 | 0.900 | **no** |" in text
-    assert "| its inlier ratio, every scan rotated: within 10 % | 0.280 (-20.0 %) | **no** |" in text
+    assert ("| its inlier ratio, every scan rotated: within 10 % | 0.280 (-20.0 %) | **no** |"
+            in text)
     assert "| 3DLoMatch: its registration recall ≥ USC's | 0.600 against 0.700 | **no** |" in text
     assert "| 2.00× and 2.00× | yes |" in text
     assert "on redkitchen | 0.250 against 0.200 (1.25×) | yes |" in text
@@ -405,3 +408,28 @@ def test_the_weights_index_names_each_bundles_data_root_and_scan_count(tmp_path)
                                                           "compass_shapes": "s"})).read()
     assert "| 3 / 3 × 2 | `embedded:1,shared/x` (13 scans) |" in index
     assert "| `/shapes` (1 shape) |" in index
+
+
+def test_classification_targets_fill_their_readme_block(tmp_path):
+    run = tmp_path / "cls"
+    run.mkdir()
+    rows = [dict(method=m, split=s, accuracy=a, thesis=0.0) for m, s, a in (
+        ("pointnet", "NR", 0.86), ("pointnet", "AR", 0.12), ("compass+pointnet", "NR", 0.80),
+        ("compass+pointnet", "AR", 0.70))]
+    (run / "classification.csv").write_text(report.to_csv(rows, list(rows[0])))
+    (run / "run.json").write_text(json.dumps({"wall_s": 420.0}))
+    got = {t: (v, ok) for t, v, ok in standing.classification_rows(str(run))}
+    assert got["Compass + PointNet: AR accuracy ≥ 0.72 (the thesis's 72.2 %)"] == ("0.700", False)
+    assert got["Compass + PointNet: AR within 0.08 of its NR"] == (
+        "0.700 against 0.800 (-0.100)", False)
+    assert got["plain PointNet: NR accuracy ≥ 0.85 (its AR reported)"] == (
+        "0.860 (AR 0.120)", True)
+    assert got["evaluating the shipped classifiers, NR and AR: ≤ 10 minutes on 2 cores"][1]
+    readme = tmp_path / "README.md"
+    readme.write_text("a\n<!-- classification-targets:begin -->\nold\n"
+                      "<!-- classification-targets:end -->\nb\n")
+    publish.publish([], results=str(tmp_path / "results.md"), readme=str(readme),
+                    classification=str(run))
+    text = readme.read_text()
+    assert "| Compass + PointNet: AR accuracy ≥ 0.72 (the thesis's 72.2 %) | 0.700 | **no** |" \
+        in text and "old" not in text and text.endswith("end -->\nb\n")

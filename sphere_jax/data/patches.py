@@ -139,9 +139,11 @@ def patches_around(points, centres_Kx3, radius, n_points, rng: np.random.Generat
 
 
 def unit_shapes(shapes_BxNx3):
-    """Whole shapes as unit patches (CONVENTIONS.md §7, ModelNet): centred on the bounding-box
-    centre, in units of half the largest bounding-box side. Returns ``(patches, centres)``."""
-    lo, hi = shapes_BxNx3.min(1, keepdims=True), shapes_BxNx3.max(1, keepdims=True)
-    centres = (lo + hi) / 2
-    half = np.max(hi - lo, axis=2, keepdims=True) / 2
-    return ((shapes_BxNx3 - centres) / np.maximum(half, 1e-9)).astype(np.float32), centres
+    """Whole shapes as unit patches (CONVENTIONS.md §7, ModelNet): centred on the centroid of
+    their points, in units of the largest distance from it. Both turn with the shape (a
+    bounding box does not: a turned shape would be re-centred and re-scaled), so a rotated
+    shape gives exactly the rotated patch. Returns ``(patches, centres [B, 1, 3])``."""
+    shapes = np.asarray(shapes_BxNx3, np.float64)
+    centres = shapes.mean(1, keepdims=True)
+    radius = np.linalg.norm(shapes - centres, axis=2).max(1)[:, None, None]
+    return ((shapes - centres) / np.maximum(radius, 1e-9)).astype(np.float32), centres

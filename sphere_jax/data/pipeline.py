@@ -284,6 +284,9 @@ def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True, jitt
     return {"copies": cop, "rotations": rots.astype(np.float32)}
 
 
+HOLDOUT_EVERY = 5     # every 5th shape of each class tested, every 5th of the rest validates
+
+
 class ShapeSource:
     """A labelled shape set in one of ModelNet40's released layouts:
 
@@ -295,9 +298,13 @@ class ShapeSource:
     * PointNet's HDF5: ``*train*.h5`` / ``*test*.h5`` (needs h5py) with ``shape_names.txt``.
     """
 
-    def __init__(self, root, n_points, seed=0, holdout_every=0):
-        """``holdout_every`` = k > 0: a set without a test split (e.g. a train-only download)
-        gets one: every k-th shape of each class, in file order, moves to ``test``."""
+    def __init__(self, root, n_points, seed=0, holdout_every=HOLDOUT_EVERY,
+                 val_every=HOLDOUT_EVERY):
+        """Three disjoint splits, the same for every shape task: ``test`` is the set's own test
+        split where it has one, else every ``holdout_every``-th shape of each class in file
+        order (e.g. ModelNet40's train-only HDF5 release); ``val`` (checkpoints and settings
+        are chosen on it) is every ``val_every``-th of each class's remaining shapes;
+        ``train`` the rest."""
         self.n_points, self.seed = n_points, seed
         root = str(root)
         if not os.path.isdir(root):
@@ -306,20 +313,26 @@ class ShapeSource:
                                                       "modelnet40_shape_names.txt")
                       if os.path.isfile(os.path.join(root, f))), None)
         if glob.glob(os.path.join(root, "*.h5")):
-            self.classes, self.splits = _load_h5(root, names)
+            self.classes, splits = _load_h5(root, names)
         elif names is not None:
-            self.classes, self.splits = _load_resampled(root, names)
+            self.classes, splits = _load_resampled(root, names)
         elif glob.glob(os.path.join(root, "*", "train", "*.off")):
-            self.classes, self.splits = _load_off(root, seed)
+            self.classes, splits = _load_off(root, seed)
         else:
             raise checks.MissingError(f"{root!r} holds no ModelNet layout (shape_names.txt with "
                                     f".txt shapes, <class>/train/*.off meshes, or *.h5 files)")
-        if not self.splits["train"][0]:
+        if not splits["train"][0]:
             raise ValueError(f"no training shapes found under {root!r}")
-        if holdout_every and not self.splits.get("test", ([],))[0]:
-            self.splits = holdout_split(*self.splits["train"], int(holdout_every))
-        self.holdout_every = int(holdout_every)
+        self.test_rule = None
+        if not splits["test"][0]:
+            splits["train"], splits["test"] = every_kth(*splits["train"], holdout_every,
+                                                        "holdout_every")
+            self.test_rule = int(holdout_every)
+        splits["train"], splits["val"] = every_kth(*splits["train"], val_every, "val_every")
+        self.val_every = int(val_every)
+        self.splits = splits
         self.root = os.path.abspath(root)
+        self.orientation = None       # how data/oriented.py turned the shapes, if it did
 
     def statement(self):
         """What this source trains on, for the bundle: the shape folder, shapes per split."""
@@ -327,9 +340,15 @@ class ShapeSource:
                                               len(self.splits["train"][0])},
                 "classes": len(self.classes),
                 "shapes": {k: len(v[0]) for k, v in self.splits.items()},
-                **({"test_split": f"the shapes of each class whose rank in file order is a "
-                                 f"multiple of {self.holdout_every}"}
-                   if self.holdout_every else {})}
+                "splits": self.split_rule(),
+                **({"orientation": self.orientation} if self.orientation else {})}
+
+    def split_rule(self):
+        """The splits in words, for the bundle's statement and the results."""
+        test = ("the set's own test split" if self.test_rule is None else
+                f"every {self.test_rule}th shape of each class in file order")
+        return (f"test: {test}; val: every {self.val_every}th of each class's other shapes; "
+                f"train: the rest")
 
     def batch(self, step, batch_size, split="train", rotate=False, copies=False,
               occlusion=True):
@@ -352,19 +371,20 @@ class ShapeSource:
         return {"points": pts.astype(np.float32), "labels": labels[pick]}
 
 
-def holdout_split(shapes, labels, every):
-    """``{'train', 'test'}`` from one labelled list: the k-th, 2k-th, ... shape of each class
-    (in list order) is a test shape, the rest train; classes with one shape keep it."""
-    if every < 2:
-        raise ValueError(f"holdout_every must be 0 (off) or ≥ 2, got {every}")
+def every_kth(shapes, labels, every, name="every"):
+    """``(kept, held)`` ``(shapes, labels)`` pairs from one labelled list: the k-th, 2k-th, ...
+    shape of each class (in list order) is held, the rest kept; a class with fewer than k
+    shapes keeps them all."""
+    if int(every) != every or every < 2:
+        raise ValueError(f"{name} must be an integer ≥ 2, got {every!r}")
     rank = np.zeros(len(labels), np.int64)
     seen = {}
     for i, c in enumerate(labels):
         seen[c] = seen.get(c, 0) + 1
         rank[i] = seen[c]
-    test = (rank % every == 0)
-    pick = lambda m: ([s for s, t in zip(shapes, m) if t], labels[m])
-    return {"train": pick(~test), "test": pick(test)}
+    held = (rank % int(every) == 0)
+    pick = lambda m: ([s for s, t in zip(shapes, m) if t], np.asarray(labels)[m])
+    return pick(~held), pick(held)
 
 
 def _load_resampled(root, names_file):

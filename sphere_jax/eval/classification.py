@@ -2,9 +2,12 @@
 tested in canonical pose (NR) and under arbitrary rotations (AR).
 
 The ``classification`` task (``configs/eval_classification.py``): ``run(config, workdir)``
-trains one PointNet per method of ``config.methods`` (in
-``workdir/<method>``; Compass-oriented shapes for ``compass+pointnet``), then scores each on
-the whole test split, as is and with every shape turned by a seeded random rotation.
+scores each method's classifier — the shipped bundle of its recipe, or, where none is given,
+one trained here (``workdir/<method>``) — on the whole test split of
+:class:`~sphere_jax.data.pipeline.ShapeSource`, as is and with every shape turned by a seeded
+random rotation. For the Compass methods it also measures why AR loses to NR: the share of test
+shapes whose frame, turned, lands within :data:`FRAME_TOLERANCE_DEG` of the canonical shape's
+(per class), and the accuracy on those shapes and on the rest.
 """
 from __future__ import annotations
 
@@ -14,53 +17,51 @@ import jax
 import ml_collections
 import numpy as np
 
-from sphere_jax import api, checks, training
+from sphere_jax import api, checks, files, model_card, training
 from sphere_jax import bundle as bundle_files
-from sphere_jax.data import augment
+from sphere_jax.data import oriented
 from sphere_jax.eval import report
 
-METHODS = ("pointnet", "compass+pointnet")
+# method -> (orients by Compass, trains on turned shapes); each a recipe in configs/.
+METHODS = {"pointnet": (False, False),               # configs/classify.py
+           "compass+pointnet": (True, False),        # configs/classify_compass.py
+           "compass_train_rotated": (True, True)}    # configs/classify_compass_rotated.py
+FRAME_TOLERANCE_DEG = 15.0
+# The thesis's figures (You et al. 2018's protocol: trained in canonical pose), in %.
+THESIS = {"pointnet": (88.45, 12.47), "compass+pointnet": (80.51, 72.20)}
 
 
-def test_points(source, n_points, seed=0):
-    """Every test shape resampled once to ``n_points`` (deterministic): ``[S, N, 3]``, labels."""
-    shapes, labels = source.splits["test"]
-    if not shapes:
-        raise ValueError("the shape set has no test split (test.txt / modelnet40_test.txt)")
-    rng = np.random.default_rng(seed)
-    pts = np.stack([s[rng.choice(len(s), n_points, replace=len(s) < n_points)] for s in shapes])
-    return pts.astype(np.float32), labels
-
-
-def accuracy(bundle, points_SxNx3, labels, orient_shapes=None, chunk=64):
-    """Fraction of shapes the classifier bundle labels correctly (turned by ``orient_shapes``
-    first when given: :func:`sphere_jax.api.shape_orienter`)."""
+def accuracy_per_shape(bundle, shapes, chunk=256):
+    """Whether the classifier bundle labels each shape right: ``[S]`` predicted labels."""
     fwd = jax.jit(lambda x: bundle.model.apply(bundle.variables, x, train=False).logits)
-    correct = 0
-    for i in range(0, len(points_SxNx3), chunk):
-        x = points_SxNx3[i:i + chunk]
-        if orient_shapes is not None:
-            x = orient_shapes(x)
-        logits = np.asarray(fwd(x))
-        correct += int(np.sum(np.argmax(logits, -1) == labels[i:i + chunk]))
-    return correct / len(points_SxNx3)
+    out = []
+    for i in range(0, len(shapes), chunk):
+        out.append(np.argmax(np.asarray(fwd(np.stack(shapes[i:i + chunk]))), -1))
+    return np.concatenate(out) if out else np.zeros(0, np.int64)
+
+
+def resampled(shapes, n_points, seed):
+    """Every shape resampled once to ``n_points`` (seeded; all of them, reordered, when it has
+    exactly that many)."""
+    rng = np.random.default_rng(seed)
+    return [s[rng.choice(len(s), n_points, replace=len(s) < n_points)].astype(np.float32)
+            for s in shapes]
 
 
 def method_config(config, method):
-    c = ml_collections.ConfigDict(config.to_dict())
+    """The training config of ``method``'s classifier: the evaluation's sizes and data, its
+    orientation by ``config.compass_bundle`` and its turns."""
     if method not in METHODS:
-        raise ValueError(f"classification method must be one of {METHODS}, got {method!r}")
-    c.orient_bundle = ""
-    if method == "compass+pointnet":
-        c.orient_bundle = config.compass_bundle
-        if not bundle_files.is_bundle(c.orient_bundle):
-            raise checks.MissingError(
-                f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
-                f"python -m experiments.train --config=compass_shapes:mid")
-        # Turned at random before Compass orients them, the training shapes show the
-        # classifier the frames Compass gives rotated shapes — its errors and its choices
-        # among a symmetric shape's frames included — not only those of canonical poses.
-        c.data.rotate = bool(config.compass_train_rotated)
+        raise ValueError(f"classification method must be one of {tuple(METHODS)}, "
+                         f"got {method!r}")
+    c = ml_collections.ConfigDict(config.to_dict())
+    orients, turned = METHODS[method]
+    c.orient_bundle = config.compass_bundle if orients else ""
+    c.data.rotate = turned
+    if orients and not bundle_files.is_bundle(api.bundle_path(c.orient_bundle)):
+        raise checks.MissingError(
+            f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
+            f"python -m experiments.train --config=compass_shapes:mid")
     return c
 
 
@@ -68,44 +69,152 @@ def _methods(config):
     return [m.strip() for m in config.methods.split(",") if m.strip()]
 
 
-def _method_dirs(config, workdir):
-    """``(method, its training workdir)`` for each method of ``config``."""
-    return [(m, os.path.join(workdir, m.replace("+", "_"))) for m in _methods(config)]
+def _classifier(config, method):
+    """The classifier bundle ``config.classifiers`` gives ``method`` ('' where none does)."""
+    return config.get("classifiers", {}).get(method, "") or ""
 
 
 def bundles(config) -> dict:
-    """Kind -> path of the bundles the methods use (the run record's): the whole-shape
-    Compass of ``compass+pointnet``."""
-    if "compass+pointnet" not in _methods(config):
-        return {}
-    return {"compass_shapes": config.compass_bundle}
+    """Name -> path of the bundles the run uses (its record's): the whole-shape Compass and
+    each method's given classifier."""
+    names = _methods(config)
+    out = {f"classifier:{m}": _classifier(config, m) for m in names if _classifier(config, m)}
+    if any(METHODS.get(m, (False,))[0] for m in names):
+        out["compass_shapes"] = api.bundle_path(config.compass_bundle)
+    return out
 
 
 def kept(workdir, config) -> int:
-    """How many methods' classifiers an earlier run left in ``workdir`` (trained, or to resume
-    from a checkpoint): a run then is not timed from scratch (tasks.run's record)."""
-    return sum(os.path.isdir(sub) for _, sub in _method_dirs(config, workdir))
+    """How many methods' classifiers an earlier run trained in ``workdir`` (a run then is not
+    timed from scratch: tasks.run's record)."""
+    return sum(os.path.isdir(os.path.join(workdir, m.replace("+", "_")))
+               for m in _methods(config) if not _classifier(config, m))
+
+
+def classifier(config, method, workdir, progress=True):
+    """``(bundle, its folder)``: ``method``'s classifier, the one ``config.classifiers`` names
+    (checked to be a classifier trained as the method says), else one trained with the
+    evaluation's config in ``workdir/<method>``."""
+    given = _classifier(config, method)
+    if given:
+        path = api.bundle_path(given)
+        trained = bundle_files.read_config(path)
+        if trained.model != "classify" or bool(trained.get("orient_bundle")) != METHODS[method][0]:
+            raise checks.ConfigError(f"config.classifiers.{method}", "a classifier bundle "
+                                     "trained as the method says (oriented by Compass or not)",
+                                     given)
+        return api.load_bundle(path), path
+    sub = os.path.join(workdir, method.replace("+", "_"))
+    c = method_config(config, method)
+    orient = api.shape_orienter(c.orient_bundle) if c.orient_bundle else None
+    training.train_and_evaluate(c, sub, progress, orient_shapes=orient)
+    return api.load_bundle(os.path.join(sub, "bundle")), os.path.join(sub, "bundle")
+
+
+def frame_agreement(orienter, canonical, turned, turns, what, progress=True):
+    """Angle (degrees) between Compass's frame of each turned shape and its frame of the
+    canonical shape turned with it (``F(R p)`` against ``R F(p)``): 0 where Compass is
+    equivariant on that shape."""
+    _, f0 = oriented.frames(orienter, canonical, {**what, "turns": None}, progress)
+    _, fr = oriented.frames(orienter, turned, what, progress)
+    rel = np.einsum("sji,sjk->sik", np.einsum("sij,sjk->sik", turns, f0), fr)
+    cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1, 1)
+    return np.degrees(np.arccos(cos))
 
 
 def run(config, workdir, progress=True):
-    """Train every method, score NR and AR; writes classification.csv / .md. Returns rows."""
-    rows = []
-    for method, sub in _method_dirs(config, workdir):
-        c = method_config(config, method)
-        orient = api.shape_orienter(c.orient_bundle) if c.orient_bundle else None
-        training.train_and_evaluate(c, sub, progress, orient_shapes=orient)
-        bundle = api.load_bundle(os.path.join(sub, "bundle"))
-        source = training.build_source(c)
-        pts, labels = test_points(source, c.data.n_points, c.seed)
-        rng = np.random.default_rng(c.eval_rotation_seed)
-        rotated = np.einsum("bij,bnj->bni", augment.random_rotations(rng, len(pts)), pts)
-        for split, x in (("NR", pts), ("AR", rotated.astype(np.float32))):
-            rows.append({"method": method, "split": split,
-                         "accuracy": accuracy(bundle, x, labels, orient_shapes=orient)})
-    n_test = len(labels) if rows else 0
+    """Score every method NR and AR; writes classification.csv / .md and frames.csv. Returns
+    ``(rows, markdown)``."""
+    names = _methods(config)
+    for m in names:
+        method_config(config, m)                      # unknown names, a missing Compass
+    source = training.build_source(method_config(config, "pointnet"))
+    shapes, labels = source.splits["test"]
+    if not shapes:
+        raise ValueError("the shape set has no test split")
+    turns = oriented.seeded_turns(len(shapes), [config.eval_rotation_seed, 2])
+    turned = oriented.turn(shapes, turns)
+    what = {"root": source.root, "split": "test", "rule": source.split_rule(),
+            "turns": int(config.eval_rotation_seed)}
+    rows, frame_rows, trained = [], [], []
+    for method in names:
+        model, path = classifier(config, method, workdir, progress)
+        trained.append(training_row(method, model, path))
+        n = model.config.data.n_points
+        views = {"NR": shapes, "AR": turned}
+        if METHODS[method][0]:
+            orienter = api.shape_orienter(config.compass_bundle)
+            for split, view in views.items():
+                key = {**what, "turns": what["turns"] if split == "AR" else None}
+                views[split] = oriented.apply(view, *oriented.frames(orienter, view, key,
+                                                                     progress))
+        right = {split: accuracy_per_shape(model, resampled(view, n, config.seed)) == labels
+                 for split, view in views.items()}
+        for split, ok in right.items():
+            rows.append({"method": method, "split": split, "accuracy": float(ok.mean()),
+                         "thesis": THESIS.get(method, (np.nan, np.nan))[split == "AR"] / 100})
+        if METHODS[method][0] and not frame_rows:
+            angle = frame_agreement(orienter, shapes, turned, turns, what, progress)
+            frame_rows = frame_table(angle, labels, source.classes, right["AR"], method)
+    return rows, write(workdir, rows, frame_rows, trained, len(shapes), source.split_rule())
+
+
+def training_row(method, model, path):
+    """What ``method``'s classifier cost to train: steps × batch and the training loop's wall
+    time, from its bundle's log."""
+    lines = model_card.read_metrics(os.path.join(path, model_card.METRICS))
+    return {"method": method, "steps": bundle_files.steps_done(model.config),
+            "batch": int(model.config.train.batch_size),
+            "train_min": model_card.wall_time_s(lines, model.config.train.batch_size) / 60}
+
+
+def frame_table(angle_deg, labels, classes, right_ar, method):
+    """Per class (and 'all'): shapes, the share whose turned frame is within tolerance, and
+    ``method``'s AR accuracy on those and on the rest."""
+    out = []
+    for c, name in [(None, "all")] + list(enumerate(classes)):
+        m = np.ones(len(labels), bool) if c is None else labels == c
+        if not m.any():
+            continue
+        good = m & (angle_deg <= FRAME_TOLERANCE_DEG)
+        bad = m & ~good
+        out.append({"class": name, "shapes": int(m.sum()), "frame_within": float(good.sum()
+                                                                                / m.sum()),
+                    "median_angle": float(np.median(angle_deg[m])),
+                    "ar_accuracy_within": float(right_ar[good].mean()) if good.any() else
+                    float("nan"),
+                    "ar_accuracy_beyond": float(right_ar[bad].mean()) if bad.any() else
+                    float("nan"), "method": method})
+    return out
+
+
+def write(workdir, rows, frame_rows, trained, n_test, rule):
+    cols = ("method", "split", "accuracy", "thesis")
     md = ("# Rotation-invariant classification\n\n"
-          f"**Accuracy on {n_test} test shapes: NR in canonical pose, AR each turned by a seeded "
-          f"random rotation (both trained in canonical pose)**\n\n"
-          + report.pivot_table(rows, "method", "split", "accuracy", cols=("NR", "AR")) + "\n")
-    return rows, report.write(workdir, "classification", rows, ("method", "split", "accuracy"),
-                              md)
+          f"**Accuracy on {n_test} test shapes ({rule}): NR in canonical pose, AR each turned "
+          f"by a seeded random rotation**; the thesis's figures (its own test split) beside "
+          f"them\n\n" + report.pivot_table(rows, "method", "split", "accuracy",
+                                           cols=("NR", "AR")))
+    thesis = [r for r in rows if not np.isnan(r["thesis"])]
+    if thesis:
+        md += ("\n\nThe thesis (You et al. 2018's split):\n\n"
+               + report.pivot_table(thesis, "method", "split", "thesis", cols=("NR", "AR")))
+    md += ("\n\n**Training each classifier** (the loop's wall time; orienting the shapes "
+           "once is not in it)\n\n"
+           + report.table(trained, ("method", "steps", "batch", "train_min"),
+                          ("method", "steps", "batch", "training, min"), fmt="{:.0f}"))
+    if frame_rows:
+        fcols = ("class", "shapes", "frame_within", "median_angle", "ar_accuracy_within",
+                 "ar_accuracy_beyond")
+        order = [frame_rows[0]] + sorted(frame_rows[1:], key=lambda r: r["frame_within"])
+        md += (f"\n\n**Where AR loses to NR: the share of test shapes whose Compass frame, "
+               f"turned with the shape, lands within {FRAME_TOLERANCE_DEG:.0f}° of the "
+               f"canonical shape's, per class (worst first), and {frame_rows[0]['method']}'s "
+               f"AR accuracy on those shapes and on the rest**\n\n"
+               + report.table(order, fcols, ("class", "shapes", "frame within", "median angle °",
+                                             "AR acc. within", "AR acc. beyond"),
+                              fmt="{:.2f}"))
+        os.makedirs(workdir, exist_ok=True)
+        files.atomic_write(os.path.join(workdir, "frames.csv"),
+                           report.to_csv(frame_rows, ("method",) + fcols))
+    return report.write(workdir, "classification", rows, cols, md + "\n")

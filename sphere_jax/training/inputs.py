@@ -4,8 +4,13 @@ from __future__ import annotations
 import os
 
 from sphere_jax import bundle, checks, models
-from sphere_jax.data import evaluation_scenes, pipeline
+from sphere_jax.data import evaluation_scenes, oriented, pipeline
 from sphere_jax.data.generators import synthetic
+
+
+# Turned copies of each training shape a Compass + PointNet trained on turned shapes sees
+# (``data.rotate``): each is oriented once, so the copies are the turns it can learn from.
+ROTATED_COPIES = 8
 
 
 def check_roots(config):
@@ -31,15 +36,24 @@ def check_roots(config):
                                      "folders, 'embedded:N' or 'shared/<path>'", entry)
 
 
-def build_source(config):
+def build_source(config, orient_shapes=None, progress=True):
     """The data of ``config.data``: a :class:`~sphere_jax.data.pipeline.PatchSource` of the
     training scans (refused where they hold an evaluation scene, unless
-    ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.pipeline.ShapeSource`."""
+    ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.pipeline.ShapeSource` —
+    for a classifier with ``config.orient_bundle``, its shapes in the frames
+    ``orient_shapes`` gives them (:func:`check_orient`), each oriented once
+    (:mod:`sphere_jax.data.oriented`)."""
     d = config.data
     if models.spec(config.model).labelled or d.get("shapes", False):
-        root = d.root or synthetic.default_root("modelnet")
-        return pipeline.ShapeSource(root, d.n_points, config.seed,
-                                    d.get("holdout_every", 0))
+        root = pipeline.entry_path(d.root) if d.root else synthetic.default_root("modelnet")
+        source = pipeline.ShapeSource(root, d.n_points, config.seed,
+                                      d.get("holdout_every", pipeline.HOLDOUT_EVERY),
+                                      d.get("val_every", pipeline.HOLDOUT_EVERY))
+        if not config.get("orient_bundle"):
+            return source
+        check_orient(config, orient_shapes)
+        copies = d.get("rotated_copies", ROTATED_COPIES) if d.get("rotate", False) else 0
+        return oriented.oriented_source(source, orient_shapes, copies, config.seed, progress)
     allow = bool(d.get("allow_evaluation_scenes", False))
     check_roots(config)              # the entries first (before an RGB-D sequence is fused),
     # then every scan and its origin
@@ -65,22 +79,19 @@ def check_orient(config, orient_shapes):
             "it)", config.orient_bundle)
 
 
-def get_batch(config, source, step, split="train", orient_shapes=None):
+def get_batch(config, source, step, split="train"):
     """Batch ``step`` of ``split`` (a function of the seed and the step alone: resumed and
-    continued runs draw what the uninterrupted run would have). ``orient_shapes``: shapes
-    ``[B, N, 3]`` → the same in a canonical frame, applied to a classifier's shapes when
-    ``config.orient_bundle`` is set (:func:`check_orient`)."""
+    continued runs draw what the uninterrupted run would have). A classifier with
+    ``config.orient_bundle`` reads shapes :func:`build_source` oriented already (turned at
+    random before, with ``data.rotate``)."""
     spec, bs = models.spec(config.model), config.train.batch_size
     if not isinstance(source, pipeline.ShapeSource):
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
                             copy_draw=config.data.get("copy_draw", bundle.DATA_ADDED["copy_draw"]),
                             copy_jitter=config.data.get("copy_jitter",
                                                         bundle.DATA_ADDED["copy_jitter"]))
-    split = "test" if split == "val" else split
     if not spec.labelled:                                       # Compass on whole shapes
         return source.batch(step, bs, split, copies=spec.copies,
                             occlusion=config.data.occlusion)
-    batch = source.batch(step, bs, split, rotate=config.data.get("rotate", False))
-    if config.get("orient_bundle"):
-        batch["points"] = orient_shapes(batch["points"])
-    return batch
+    rotate = config.data.get("rotate", False) and not config.get("orient_bundle")
+    return source.batch(step, bs, split, rotate=rotate)

@@ -213,15 +213,12 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     check_roots(config)                                 # so does a data root that is not there
     check_orient(config, orient_shapes)
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
-        return _train(config, workdir, progress, init_variables, command,
-                      functools.partial(get_batch, orient_shapes=orient_shapes))
+        return _train(config, workdir, progress, init_variables, command, orient_shapes)
 
 
-def _train(config, workdir, progress, init_variables, command, batch_of):
-    """``batch_of(config, source, step[, split])``: :func:`get_batch` with the run's
-    ``orient_shapes``."""
+def _train(config, workdir, progress, init_variables, command, orient_shapes):
     checkpoints.claim_workdir(workdir, config)
-    source = build_source(config)
+    source = build_source(config, orient_shapes, progress)
     if models.spec(config.model).labelled:
         with config.unlocked():
             config.n_classes = len(source.classes)
@@ -229,7 +226,7 @@ def _train(config, workdir, progress, init_variables, command, batch_of):
     parallel.check_batch_size(config.train.batch_size, mesh)
     model = training_model(config)
     tx = optimiser()
-    state = init_state(config, model, tx, batch_of(config, source, 0))
+    state = init_state(config, model, tx, get_batch(config, source, 0))
     train_step, eval_step = make_steps(config, model, tx, mesh)
     mngr = checkpoints.checkpoint_manager(workdir, config)
     main_host = jax.process_index() == 0          # the one that logs
@@ -257,7 +254,7 @@ def _train(config, workdir, progress, init_variables, command, batch_of):
                       int(config.train.get("early_stop_grace", 0) or 0))
     fresh_finetune = init_variables is not None and start == 0 and mngr.latest_step() is None
     if plateau.patience and fresh_finetune:
-        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh, batch_of))
+        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh))
         plateau.reached(before["val_loss"], state, 0)
         if main_host:
             with open(metrics_path, "a") as log:
@@ -270,7 +267,7 @@ def _train(config, workdir, progress, init_variables, command, batch_of):
     bar = tqdm(total=None if open_ended else config.train.steps, initial=start,
                disable=not (progress and main_host),
                desc=f"{config.model}:{config.get('size', '')}")
-    make = lambda step: parallel.shard_batch(batch_of(config, source, step), mesh)
+    make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
     with open(metrics_path, "a") as log, \
             Prefetch(make, range(start, config.train.steps)) as batches:
         for step, batch in batches:
@@ -288,7 +285,7 @@ def _train(config, workdir, progress, init_variables, command, batch_of):
                             data_wait_frac=round((batches.wait_s - wait_last) / (now - t_last), 4))
                 t_last, seen, wait_last = now, 0, batches.wait_s
                 if done % config.train.eval_every == 0 or final:
-                    last.update(evaluate(config, source, state, eval_step, mesh, batch_of))
+                    last.update(evaluate(config, source, state, eval_step, mesh))
                     final = plateau.reached(last["val_loss"], state, done) or final
                 if main_host:
                     log.write(json.dumps(last) + "\n")
@@ -345,8 +342,8 @@ class Plateau:
             self.since >= max(self.patience, self.relative * self.best_seen)
 
 
-def evaluate(config, source, state, eval_step, mesh, batch_of):
+def evaluate(config, source, state, eval_step, mesh):
     vals = [eval_step(state, parallel.shard_batch(
-        batch_of(config, source, 10_000_000 + k, "val"), mesh))
+        get_batch(config, source, 10_000_000 + k, "val"), mesh))
         for k in range(config.train.eval_batches)]
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}

@@ -1,4 +1,5 @@
-"""The batch of a step: a classifier's shapes go through the orientation the caller passes."""
+"""The batch of a step: a classifier's shapes in the frames of the orientation the caller passes,
+oriented once when the source is built."""
 import os
 
 import numpy as np
@@ -19,24 +20,40 @@ def config(tmp_path_factory):
     return c
 
 
-def test_orient_shapes_turns_every_batch_of_an_oriented_classifier(config):
-    source = training.build_source(config)
-    plain = training.get_batch(config, source, 3)
-    flip = np.diag([1.0, -1.0, -1.0]).astype(np.float32)        # a proper rotation
-    config.orient_bundle = "a whole-shape Compass"
-    seen = []
+class Flip:
+    """A constant frame (a proper rotation) that counts the shapes it orients."""
+    key = "flip"
+    frame = np.diag([1.0, -1.0, -1.0])
 
-    def orient(shapes_BxNx3):
-        seen.append(shapes_BxNx3.shape)
-        return shapes_BxNx3 @ flip
+    def __init__(self):
+        self.seen = 0
 
-    try:
-        turned = training.get_batch(config, source, 3, orient_shapes=orient)
-        np.testing.assert_array_equal(turned["points"], plain["points"] @ flip)
-        np.testing.assert_array_equal(turned["labels"], plain["labels"])
-        assert seen == [plain["points"].shape]
-    finally:
-        config.orient_bundle = ""
+    def frames(self, shapes_BxNx3):
+        self.seen += len(shapes_BxNx3)
+        return np.zeros((len(shapes_BxNx3), 1, 3)), np.repeat(self.frame[None],
+                                                               len(shapes_BxNx3), 0)
+
+
+def test_an_oriented_classifier_reads_each_shape_oriented_once(config, monkeypatch, tmp_path):
+    monkeypatch.setenv("SPHERE_JAX_DATA", str(tmp_path))
+    plain_source = training.build_source(config)
+    plain = training.get_batch(config, plain_source, 3)
+    c = classify.get_config("tiny")
+    c.data.root, c.orient_bundle = config.data.root, "a whole-shape Compass"
+    flip = Flip()
+    source = training.build_source(c, orient_shapes=flip, progress=False)
+    n_shapes = sum(len(v[0]) for v in plain_source.splits.values())
+    assert flip.seen == n_shapes
+    for step in range(3):
+        training.get_batch(c, source, step)
+    assert flip.seen == n_shapes                       # batches do not orient again
+    turned = training.get_batch(c, source, 3)
+    np.testing.assert_allclose(turned["points"], plain["points"] @ Flip.frame, atol=1e-6)
+    np.testing.assert_array_equal(turned["labels"], plain["labels"])
+    assert source.statement()["orientation"] == {"orienter": "flip", "rotated_copies": 0}
+    c.data.rotate = True                               # turned copies, oriented once each
+    copies = training.build_source(c, orient_shapes=Flip(), progress=False)
+    assert len(copies.splits["train"][0]) == 8 * len(plain_source.splits["train"][0])
 
 
 def test_an_oriented_classifier_without_orient_shapes_is_refused_before_work(config, tmp_path):
