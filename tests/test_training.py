@@ -24,12 +24,15 @@ CONFIGS = {"compass": compass, "lead": lead, "lead_pn": lead_pn, "sound": sound,
 def small_root(tmp_path_factory):
     root = tmp_path_factory.mktemp("train_data")
     synthetic.make_all(str(root), seed=5, n_scenes=1, **SMALL)
+    # SMALL's shape set has one training shape a class: too few to hold validation shapes out.
+    synthetic.make_shapes(str(root / "shapes"), seed=5, per_class=6, n_points=500)
     return root
 
 
 def tiny(name, root, **train):
     c = CONFIGS[name].get_config("tiny")
-    c.data.root = str(root / ("modelnet" if name == "classify" else "3dmatch"))
+    c.data.root = str(root / ("shapes" if name == "classify" else "3dmatch"))
+    c.data.val_every = 2                # a few shapes a class: every 2nd validates
     c.data.update(voxel=0.04, radius=0.5, keypoint_leaf=0.5)
     c.train.update(train)
     return c
