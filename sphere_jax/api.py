@@ -318,8 +318,8 @@ def shape_orienter(path):
 
 @dataclasses.dataclass(frozen=True)
 class ShapeOrienter:
-    """Whole shapes → the same shapes in the canonical frames a whole-shape Compass bundle gives
-    them. ``key`` names the bundle's weights: caches of oriented shapes are keyed by it
+    """The canonical frames a whole-shape Compass bundle gives whole shapes. ``key`` names the
+    bundle's weights: caches of oriented shapes are keyed by it
     (:mod:`sphere_jax.data.oriented`)."""
     bundle: Bundle
     key: str
@@ -327,9 +327,6 @@ class ShapeOrienter:
     def frames(self, shapes_BxNx3):
         """``(centres [B, 1, 3], frames [B, 3, 3])``: :func:`shape_frames`."""
         return shape_frames(self.bundle, shapes_BxNx3)
-
-    def __call__(self, shapes_BxNx3):
-        return orient_shapes(self.bundle, shapes_BxNx3)
 
 
 def shape_frames(bundle, shapes_BxNx3):

@@ -4,8 +4,8 @@ rotation-invariant classification experiment (thesis 3.3).
 Orienting is the costly part of a Compass + PointNet step (a spherical CNN per shape against a
 PointNet), and a shape's frame does not change between epochs: each shape's frame is computed
 once and kept in ``<cache>/oriented/<key>.npz`` (``paths.cache_root()``), keyed by the bundle's
-fingerprint, the shape set, its split and the turns. Only the centres ``[S, 1, 3]``, frames
-``[S, 3, 3]`` and turns are kept; the shapes are turned again on load.
+fingerprint, the shape set, its split and the turns. Only the centres ``[S, 1, 3]`` and frames
+``[S, 3, 3]`` are kept (seeded turns are drawn again); the shapes are turned again on load.
 
 ``orienter`` is anything with ``frames(shapes_BxNx3) -> (centres, frames)`` and a ``key``
 (:class:`sphere_jax.api.ShapeOrienter`).

@@ -31,8 +31,8 @@ FRAME_TOLERANCE_DEG = 15.0
 THESIS = {"pointnet": (88.45, 12.47), "compass+pointnet": (80.51, 72.20)}
 
 
-def accuracy_per_shape(bundle, shapes, chunk=256):
-    """Whether the classifier bundle labels each shape right: ``[S]`` predicted labels."""
+def predicted_labels(bundle, shapes, chunk=256):
+    """The classifier bundle's label of each shape ``[N, 3]`` of the list: ``[S]``."""
     fwd = jax.jit(lambda x: bundle.model.apply(bundle.variables, x, train=False).logits)
     out = []
     for i in range(0, len(shapes), chunk):
@@ -111,13 +111,12 @@ def classifier(config, method, workdir, progress=True):
     return api.load_bundle(os.path.join(sub, "bundle")), os.path.join(sub, "bundle")
 
 
-def frame_agreement(orienter, canonical, turned, turns, what, progress=True):
+def frame_angles(turns_Sx3x3, canonical_Sx3x3, turned_Sx3x3):
     """Angle (degrees) between Compass's frame of each turned shape and its frame of the
     canonical shape turned with it (``F(R p)`` against ``R F(p)``): 0 where Compass is
     equivariant on that shape."""
-    _, f0 = oriented.frames(orienter, canonical, {**what, "turns": None}, progress)
-    _, fr = oriented.frames(orienter, turned, what, progress)
-    rel = np.einsum("sji,sjk->sik", np.einsum("sij,sjk->sik", turns, f0), fr)
+    rel = np.einsum("sji,sjk->sik", np.einsum("sij,sjk->sik", turns_Sx3x3, canonical_Sx3x3),
+                    turned_Sx3x3)
     cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1, 1)
     return np.degrees(np.arccos(cos))
 
@@ -134,27 +133,29 @@ def run(config, workdir, progress=True):
         raise ValueError("the shape set has no test split")
     turns = oriented.seeded_turns(len(shapes), [config.eval_rotation_seed, 2])
     turned = oriented.turn(shapes, turns)
-    what = {"root": source.root, "split": "test", "rule": source.split_rule(),
-            "turns": int(config.eval_rotation_seed)}
+    what = {"root": source.root, "split": "test", "rule": source.split_rule()}
+    views = {"NR": shapes, "AR": turned}
+    in_frames, angle = {}, None
+    if any(METHODS[m][0] for m in names):             # each test shape oriented once
+        orienter = api.shape_orienter(config.compass_bundle)
+        found = {"NR": oriented.frames(orienter, shapes, {**what, "turns": None}, progress),
+                 "AR": oriented.frames(orienter, turned,
+                                       {**what, "turns": int(config.eval_rotation_seed)},
+                                       progress)}
+        in_frames = {k: oriented.apply(views[k], *found[k]) for k in views}
+        angle = frame_angles(turns, found["NR"][1], found["AR"][1])
     rows, frame_rows, trained = [], [], []
     for method in names:
         model, path = classifier(config, method, workdir, progress)
         trained.append(training_row(method, model, path))
         n = model.config.data.n_points
-        views = {"NR": shapes, "AR": turned}
-        if METHODS[method][0]:
-            orienter = api.shape_orienter(config.compass_bundle)
-            for split, view in views.items():
-                key = {**what, "turns": what["turns"] if split == "AR" else None}
-                views[split] = oriented.apply(view, *oriented.frames(orienter, view, key,
-                                                                     progress))
-        right = {split: accuracy_per_shape(model, resampled(view, n, config.seed)) == labels
-                 for split, view in views.items()}
+        seen = in_frames if METHODS[method][0] else views
+        right = {split: predicted_labels(model, resampled(view, n, config.seed)) == labels
+                 for split, view in seen.items()}
         for split, ok in right.items():
             rows.append({"method": method, "split": split, "accuracy": float(ok.mean()),
                          "thesis": THESIS.get(method, (np.nan, np.nan))[split == "AR"] / 100})
         if METHODS[method][0] and not frame_rows:
-            angle = frame_agreement(orienter, shapes, turned, turns, what, progress)
             frame_rows = frame_table(angle, labels, source.classes, right["AR"], method)
     return rows, write(workdir, rows, frame_rows, trained, len(shapes), source.split_rule())
 

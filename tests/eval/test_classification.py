@@ -59,7 +59,7 @@ def test_missing_compass_bundle_is_named(tmp_path):
     classification.method_config(c, "pointnet")   # plain PointNet does not need it
 
 
-def test_frame_agreement_is_the_angle_between_turned_frames(monkeypatch, tmp_path):
+def test_frame_angles_are_the_angles_between_turned_frames(monkeypatch, tmp_path):
     """0° for an orienter that turns with the shape; the turn's own angle for one that does not
     (the identity frame), and the per-class table counts the shapes within 15°."""
     monkeypatch.setenv("SPHERE_JAX_DATA", str(tmp_path))
@@ -84,10 +84,15 @@ def test_frame_agreement_is_the_angle_between_turned_frames(monkeypatch, tmp_pat
                 f[k] = next((t for s, t in zip(turned, turns) if np.array_equal(s, p)), f[k])
             return c, f
 
-    what = {"root": "r", "split": "test", "rule": "", "turns": 0}
-    np.testing.assert_allclose(classification.frame_agreement(
-        Equivariant(), shapes, turned, turns, what, progress=False), 0, atol=0.05)
-    angle = classification.frame_agreement(Fixed(), shapes, turned, turns, what, False)
+    what = {"root": "r", "split": "test", "rule": ""}
+
+    def angles(orienter):
+        _, f0 = oriented.frames(orienter, shapes, {**what, "turns": None}, progress=False)
+        _, fr = oriented.frames(orienter, turned, {**what, "turns": 0}, progress=False)
+        return classification.frame_angles(turns, f0, fr)
+
+    np.testing.assert_allclose(angles(Equivariant()), 0, atol=0.05)
+    angle = angles(Fixed())
     np.testing.assert_allclose(angle, [5, 10, 40, 90], atol=0.05)   # float32 frames
     rows = classification.frame_table(angle, np.array([0, 0, 1, 1]), ["a", "b"],
                                       np.array([True, False, True, True]), "m")
