@@ -66,12 +66,23 @@ def shot_lrf(nb: Neighbourhoods, min_neighbours=5):
 
 def toldi_lrf(nb: Neighbourhoods, min_neighbours=5):
     """TOLDI's LRF for every keypoint of ``nb`` -> ``[K, 3, 3]``."""
+    z, n_inner = _inner_normal(nb)
+    return _toldi_x(nb, z, (nb.counts >= min_neighbours) & (n_inner >= 3))
+
+
+def _inner_normal(nb: Neighbourhoods):
+    """TOLDI's normal: the PCA normal of the neighbours within R/3, about their centroid
+    (either sign), ``[K, 3]``, and how many neighbours it had ``[K]``."""
     inner = nb.within(nb.radius / 3.0)
-    n_inner = np.maximum(inner.counts, 1)[:, None]
-    centroid = inner.sum(inner.local) / n_inner
+    centroid = inner.sum(inner.local) / np.maximum(inner.counts, 1)[:, None]
     centred = inner.local - centroid[inner.owner]
     _, vecs = np.linalg.eigh(_outer_sum(inner, centred, np.ones(len(centred))))
-    return _toldi_x(nb, vecs[:, :, 0], (nb.counts >= min_neighbours) & (inner.counts >= 3))
+    return vecs[:, :, 0], inner.counts
+
+
+def _below(nb: Neighbourhoods, z_Kx3):
+    """ẑ turned so the neighbours lie below it (Σ dᵢ·ẑ ≤ 0)."""
+    return np.where((np.sum(nb.sum(nb.local) * z_Kx3, axis=1) > 0)[:, None], -z_Kx3, z_Kx3)
 
 
 def threedsn_lrf(nb: Neighbourhoods, min_neighbours=5):
@@ -83,7 +94,7 @@ def threedsn_lrf(nb: Neighbourhoods, min_neighbours=5):
 def _toldi_x(nb: Neighbourhoods, z_Kx3, valid_K):
     """ẑ turned so the neighbours lie below it, and TOLDI's x̂: the tangent projections
     weighted by ``((R − dᵢ)·(dᵢ·ẑ))²``."""
-    z = np.where((np.sum(nb.sum(nb.local) * z_Kx3, axis=1) > 0)[:, None], -z_Kx3, z_Kx3)
+    z = _below(nb, z_Kx3)
     height = np.sum(nb.local * z[nb.owner], axis=1)
     tangent = nb.local - height[:, None] * z[nb.owner]
     w = ((nb.radius - nb.dist) * height) ** 2
@@ -95,12 +106,8 @@ def _toldi_x(nb: Neighbourhoods, z_Kx3, valid_K):
 def gframes_lrf(nb: Neighbourhoods, normals_Nx3, min_neighbours=5):
     """GFrames' LRF for every keypoint of ``nb`` -> ``[K, 3, 3]``; ``normals_Nx3``: the cloud's
     normals (any sign), indexed by ``nb.index``."""
-    inner = nb.within(nb.radius / 3.0)
-    n_inner = np.maximum(inner.counts, 1)[:, None]
-    centred = inner.local - (inner.sum(inner.local) / n_inner)[inner.owner]
-    _, vecs = np.linalg.eigh(_outer_sum(inner, centred, np.ones(len(centred))))
-    z = vecs[:, :, 0]
-    z = np.where((np.sum(nb.sum(nb.local) * z, axis=1) > 0)[:, None], -z, z)
+    z, n_inner = _inner_normal(nb)
+    z = _below(nb, z)
     # Any orthonormal tangent basis (e1, e2): the fitted gradient does not depend on it.
     e1 = np.cross(z, np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
     e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
@@ -115,4 +122,4 @@ def gframes_lrf(nb: Neighbourhoods, normals_Nx3, min_neighbours=5):
     coef = np.linalg.solve(normal_eq, rhs[:, :, None])[:, :, 0]
     x = coef[:, 1:2] * e1 + coef[:, 2:3] * e2
     x /= np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)
-    return _frames(x, z, (nb.counts >= min_neighbours) & (inner.counts >= 3))
+    return _frames(x, z, (nb.counts >= min_neighbours) & (n_inner >= 3))
