@@ -75,7 +75,7 @@ def base(size: str) -> ml_collections.ConfigDict:
         allow_evaluation_scenes=False,   # True: an evaluation-scene experiment, recorded
                                          # (sphere_jax/data/evaluation_scenes.py)
     ))
-    # Patches per jitted inference call (api.Bundle.orient/describe); memory grows with it and
+    # Patches per jitted inference call (inference.Bundle.orient/describe); memory grows with it and
     # with the chunks run at a time (parallel.run_chunked).
     c.infer_chunk = 256
     c.train = ml_collections.ConfigDict(dict(

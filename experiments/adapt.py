@@ -22,7 +22,8 @@ from __future__ import annotations
 import os
 
 from experiments import cli
-from sphere_jax import align, api, checks, workdirs
+from sphere_jax import align, checks, workdirs
+from sphere_jax.bundles import inference
 from sphere_jax.data import pipeline
 from sphere_jax.data.readers import io
 from sphere_jax.features import whitening_fit
@@ -79,7 +80,7 @@ def main(argv=None):
         if not given:
             raise checks.InputError("bundle", "a bundle folder or kind, or several "
                                     "comma-separated", repr(args.bundle))
-        bundles = [api.load_bundle(b) for b in given]
+        bundles = [inference.load_bundle(b) for b in given]
         kinds = align.one_per_kind([b.kind for b in bundles])
         if args.compass is not None:                # before reading any scan
             whitening_fit.frame_bundle(args.compass)
@@ -95,7 +96,7 @@ def main(argv=None):
         print(f"adapting {', '.join(kinds)}{' side by side' if several else ''} on "
               f"{args.data}: voxel {voxel:.4g}, radius {radius:.4g}{budget}"
               f"{cores if several else ''}")
-        jobs = [(k, api.bundle_path(b), os.path.join(args.workdir, k) if several
+        jobs = [(k, inference.bundle_path(b), os.path.join(args.workdir, k) if several
                  else args.workdir, d) for k, b, d in zip(kinds, given, data)]
         paths = side_by_side.adapt_side_by_side(jobs, args.data, args.steps, minutes,
                                                 args.learning_rate, args.patience,

@@ -1,4 +1,4 @@
-"""Render a bundle's model card again from its files (``sphere_jax.model_card``).
+"""Render a bundle's model card again from its files (``sphere_jax.bundles.model_card``).
 
     python -m experiments.model_card BUNDLE [--metrics=W/metrics.jsonl] [--command="..."]
     python -m experiments.model_card --index       # sphere_jax/weights/README.md
@@ -21,7 +21,8 @@ def main(argv=None):
     parser.add_argument("--metrics", default=None, help="the run's metrics.jsonl to copy in")
     parser.add_argument("--command", default=None, help="the command that trained it")
     args = parser.parse_args(argv)
-    from sphere_jax import model_card, paths
+    from sphere_jax import paths
+    from sphere_jax.bundles import model_card
     if args.index == bool(args.bundle):
         parser.error("give a bundle folder or --index")
     with cli.refusals(arguments=True):          # it reads only the bundle it is given

@@ -11,7 +11,7 @@ bundles and the date; its markdown and CSV hold the tables, a registration run's
 again replaces its own section, the others stay but those ``--drop`` names (``--fresh``: only
 the runs given, in their order). ``--headline`` (a registration run) replaces the table between
 the README's ``headline`` markers; every bundle a run used gets the run's table in its model
-card (:func:`sphere_jax.model_card.add_evaluation`). ``--adaptation`` pairs a run with the
+card (:func:`sphere_jax.bundles.model_card.add_evaluation`). ``--adaptation`` pairs a run with the
 shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
 ``adapt_steps``): a section compares them method by method and says what each bundle adapted on,
 for how long. ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured
@@ -182,13 +182,13 @@ def adapted_bundles(before, after, after_dir):
 
 def adaptation_line(kind, path) -> str:
     """What an adapted bundle did: steps, minutes, the weights kept, the scans and scale."""
-    from sphere_jax import bundle, model_card
-    config = bundle.read_config(path)
+    from sphere_jax.bundles import model_card, store
+    config = store.read_config(path)
     budget = float(config.train.get("time_budget_s", 0) or 0) / 60
     lines = model_card.read_metrics(os.path.join(path, model_card.METRICS))
     took = model_card.wall_time_s(lines, config.train.batch_size) / 60
     best = config.train.get("best_step")
-    return (f"{kind}: {bundle.steps_done(config)} steps, {took:.1f} min of them"
+    return (f"{kind}: {store.steps_done(config)} steps, {took:.1f} min of them"
             + (f" (budget {budget:g})" if budget else "")
             + ("" if best is None else ", the weights it started from kept (no better "
                "validation loss)" if best == 0 else f", weights of step {best}")
@@ -199,8 +199,8 @@ def adaptation_line(kind, path) -> str:
 def budgets(kinds: dict) -> str:
     """The adapted bundles' time budgets for a title: ``, 10 min each`` or ``, compass 10 min,
     lead 5 min``; empty when none had one (a step count decided)."""
-    from sphere_jax import bundle
-    minutes = {k: float(bundle.read_config(p).train.get("time_budget_s", 0) or 0) / 60
+    from sphere_jax.bundles import store
+    minutes = {k: float(store.read_config(p).train.get("time_budget_s", 0) or 0) / 60
                for k, p in sorted(kinds.items())}
     if not any(minutes.values()):
         return ""
@@ -251,10 +251,10 @@ def adaptation_section(before_dir, after_dir) -> str:
 def same_bundle(recorded, path) -> bool:
     """Whether the bundle at ``path`` is the one a run recorded (its fingerprint; for runs
     that recorded none, its steps): a card lists only its own bundle's evaluations."""
-    from sphere_jax import bundle
+    from sphere_jax.bundles import store
     if recorded.get("fingerprint"):
-        return recorded["fingerprint"] == bundle.fingerprint(path)
-    return recorded.get("steps_done") == bundle.steps_done(bundle.read_config(path))
+        return recorded["fingerprint"] == store.fingerprint(path)
+    return recorded.get("steps_done") == store.steps_done(store.read_config(path))
 
 
 def readme_block(readme, name, content):
@@ -359,7 +359,7 @@ def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations
                      f"{standing.classification_table(classification)}\n\n`python -m "
                      f"experiments.publish ... --classification={classification}` (its "
                      f"command, data and bundles: docs/results.md).")
-    from sphere_jax import model_card
+    from sphere_jax.bundles import model_card
     for _, record, md in runs:
         for kind, b in record.get("bundles", {}).items():
             path = b["path"] if os.path.isabs(b["path"]) else os.path.join(REPO, b["path"])

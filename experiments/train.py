@@ -60,13 +60,14 @@ def main(_):
         raise app.UsageError("--config is required, e.g. --config=sound:small")
     _set_host_devices(f.host_devices)
     import jax              # configured by cli.run, but no backend started: XLA_FLAGS holds
-    from sphere_jax import api, parallel, training
+    from sphere_jax import parallel, training
+    from sphere_jax.bundles import inference
     from sphere_jax.features import whitening_fit
     if f.distributed or f.coordinator or f.num_processes is not None:
         parallel.initialize(f.coordinator, f.num_processes, f.process_id, f.peer_timeout_s)
     workdir = f.workdir or os.path.join("runs", f"{config.model}_{config.size}")
     command = cli.command("experiments.train")
-    orient = api.shape_orienter(config.orient_bundle) if config.get("orient_bundle") else None
+    orient = inference.shape_orienter(config.orient_bundle) if config.get("orient_bundle") else None
     _, last = training.train_and_evaluate(config, workdir, command=command, orient_shapes=orient)
     if f.whiten and jax.process_index() == 0:
         whitening_fit.fit_if_descriptor(os.path.join(workdir, "bundle"), command=command)

@@ -4,7 +4,7 @@
 Describes random keypoints of the scans the bundle trained on (``config.data.root``) and
 stores, in the bundle, the linear map that gives every principal direction of those
 descriptors unit variance (``whitening.npz``, ``whitening.json``;
-:mod:`sphere_jax.features.whitening`): one for the kind's own frames and, for LEAD, one for
+:mod:`sphere_jax.bundles.whitening`): one for the kind's own frames and, for LEAD, one for
 Compass frames (``--compass``, default the shipped Compass). ``describe`` then whitens by
 default; what it buys on the redkitchen pairs: docs/results.md.
 

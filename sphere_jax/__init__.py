@@ -16,8 +16,9 @@ Conventions (``sphere_jax/spherical/CONVENTIONS.md``): points are ``[N, 3]`` flo
 rotations act actively (``p' = R p``), an LRF is a 3×3 matrix whose **columns** are x̂, ŷ, ẑ in
 world coordinates, so a patch in canonical pose is ``(p − keypoint) @ F``. Modules:
 ``so3, wigner, transforms, correlation, layers, signal, soft_argmax, losses`` (the spherical
-core, pure functions), ``models`` (flax), ``training``, ``api``, ``data`` (readers, patches,
-synthetic data) and ``eval`` (benchmarks).
+core, pure functions), ``models`` (flax), ``bundles`` (trained networks: files, cards,
+whitenings, inference), ``training``, ``data`` (readers, patches, synthetic data) and
+``eval`` (benchmarks).
 """
 from __future__ import annotations
 
@@ -28,16 +29,17 @@ from sphere_jax.checks import SphereJaxError
 
 def load_bundle(path):
     """Load an inference bundle (``bundle/`` written at the end of training): an
-    :class:`sphere_jax.api.Bundle` with ``.orient``, ``.describe`` and ``.config``."""
-    from sphere_jax import api
-    return api.load_bundle(path)
+    :class:`sphere_jax.bundles.inference.Bundle` with ``.orient``, ``.describe`` and ``.config``."""
+    from sphere_jax.bundles import inference
+    return inference.load_bundle(path)
 
 
 def _bundle(bundle_or_path):
-    from sphere_jax import api, checks
+    from sphere_jax import checks
+    from sphere_jax.bundles import inference
     if isinstance(bundle_or_path, (str, bytes)) or hasattr(bundle_or_path, "__fspath__"):
-        return api.cached_bundle(bundle_or_path)
-    if not isinstance(bundle_or_path, api.Bundle):
+        return inference.cached_bundle(bundle_or_path)
+    if not isinstance(bundle_or_path, inference.Bundle):
         raise checks.InputError("bundle", "a Bundle, a bundle folder or a shipped model kind "
                                 "('compass', 'lead', 'lead_pn', 'sound')",
                                 checks.shown(bundle_or_path))
@@ -49,8 +51,8 @@ def orient(bundle, points, keypoints, radius=None, chunk=None, seed=0, workers=N
     """Local reference frames from a Compass or SOUND bundle.
 
     Args:
-      bundle: a :class:`sphere_jax.api.Bundle`, the path of one (loaded once, then cached) or
-        a shipped model kind (``"compass"``, ``"sound"``).
+      bundle: a :class:`sphere_jax.bundles.inference.Bundle`, the path of one (loaded once, then
+        cached) or a shipped model kind (``"compass"``, ``"sound"``).
       points: ``[N, 3]`` float cloud, metres (e.g. voxelised at 2 cm for 3DMatch), or an open3d
         point cloud (``open3d.geometry.PointCloud`` or ``open3d.t.geometry.PointCloud``).
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
@@ -84,15 +86,15 @@ def describe(bundle, points, keypoints, radius=None, chunk=None, seed=0, frames=
     FLARE-oriented patch; SOUND orients itself.
 
     Args:
-      bundle: a :class:`sphere_jax.api.Bundle`, the path of one, or a shipped model kind
-        (``"lead"``, ``"lead_pn"``, ``"sound"``).
+      bundle: a :class:`sphere_jax.bundles.inference.Bundle`, the path of one, or a shipped model
+        kind (``"lead"``, ``"lead_pn"``, ``"sound"``).
       points: ``[N, 3]`` float cloud, metres, or an open3d point cloud.
       keypoints: ``[K]`` int indices into ``points`` or ``[K, 3]`` coordinates.
       radius: support radius in metres (default: the bundle's).
       chunk, seed, workers, on_invalid: as in :func:`orient`.
       frames: optional LRFs for LEAD (rotations: orthonormal, det +1, within 1e-3).
       whiten: the bundle's descriptor whitening, fitted on its training scans
-        (:mod:`sphere_jax.features.whitening`): ``"auto"`` the one for its own frames when
+        (:mod:`sphere_jax.bundles.whitening`): ``"auto"`` the one for its own frames when
         ``frames`` is None (none when frames are given), ``"compass"`` LEAD's for Compass
         frames, None the network's raw output.
       as_open3d: return an ``open3d.pipelines.registration.Feature`` (``data [D, K]``), which

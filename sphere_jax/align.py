@@ -272,16 +272,16 @@ def method_bundles(method: registry.Method, bundle=None):
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
     given = split_bundles(bundle)
     if given:
-        from sphere_jax import api, bundle as bundle_files
+        from sphere_jax.bundles import inference, store
         # The kind is the config's: the weights are read once, where they are used.
-        kinds = one_per_kind([bundle_files.read_config(api.bundle_path(b)).model
+        kinds = one_per_kind([store.read_config(inference.bundle_path(b)).model
                               for b in given])
         for b, kind in zip(given, kinds):
             if kind not in method.needs:
                 raise checks.InputError("bundle", f"of a kind that method {method.key!r} uses "
                                         f"({', '.join(method.needs) or 'none: no network'})",
                                         f"a {kind} bundle")
-            bundles[kind] = api.bundle_path(b)
+            bundles[kind] = inference.bundle_path(b)
     return bundles
 
 
@@ -327,7 +327,7 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
     as long by 12 %. Two scans teach less: 5 minutes on each of four bunny pairs the shipped
     bundles fail registered none of them, nor a LiDAR pair, and another they lost
     (docs/training.md; :func:`register` keeps the better result)."""
-    from sphere_jax import api, bundle as bundle_files
+    from sphere_jax.bundles import inference, store
     from sphere_jax.features import whitening_fit
     from sphere_jax.training import adaptation, side_by_side
     kinds = adapted_kinds(registry.resolve(method))
@@ -337,9 +337,9 @@ def adapted_bundles(method, bundles, source, target, voxel, radius, minutes, wor
         scans.append(os.path.join(workdir, f"{name}.npy"))
         np.save(scans[-1], np.asarray(points, np.float32))
     scans = ",".join(scans)
-    folders = {k: api.bundle_path(bundles[k]) for k in kinds}
+    folders = {k: inference.bundle_path(bundles[k]) for k in kinds}
     jobs = [(k, folders[k], os.path.join(workdir, k),
-             adaptation.data_at_scale(bundle_files.read_config(folders[k]), voxel, radius))
+             adaptation.data_at_scale(store.read_config(folders[k]), voxel, radius))
             for k in kinds]
     adapted = side_by_side.adapt_side_by_side(jobs, scans, minutes=minutes, progress=progress)
     out = dict(bundles)

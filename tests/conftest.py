@@ -43,7 +43,7 @@ def pytest_configure(config):
 # 44 s), run first: workers are handed whole files in collection order (--dist loadfile), and
 # one of these left for last kept the other worker idle for minutes.
 LONGEST_FIRST = ("tests/test_training.py", "tests/test_parallel.py", "tests/test_notebooks.py",
-                 "tests/test_api.py", "tests/eval/test_classification.py",
+                 "tests/bundles/test_inference.py", "tests/eval/test_classification.py",
                  "tests/data/generators/test_synthetic.py", "tests/eval/test_ablation.py")
 
 

@@ -14,7 +14,8 @@ from sphere_jax import align, paths
 from sphere_jax.data import demo
 from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
-from sphere_jax.features import registry, whitening
+from sphere_jax.features import registry
+from sphere_jax.bundles import whitening
 
 
 @pytest.fixture(scope="module")
@@ -92,11 +93,11 @@ def test_several_bundles_replace_the_shipped_ones_of_their_kinds():
 def test_checking_the_given_bundles_reads_no_weights(monkeypatch):
     """The early check of ``bundle=`` needs only each bundle's kind: its weights are read
     once, later, where they are used."""
-    from sphere_jax import bundle as bundle_files
+    from sphere_jax.bundles import store
 
     def refuse(path):
         raise AssertionError(f"weights of {path} read by the check")
-    monkeypatch.setattr(bundle_files, "read_variables", refuse)
+    monkeypatch.setattr(store, "read_variables", refuse)
     bundles = align.method_bundles(registry.resolve("lead@compass"), "compass,lead")
     assert set(bundles) >= {"compass", "lead"}
 
@@ -281,15 +282,15 @@ def test_adapt_takes_every_network_of_a_learned_method():
 def test_an_adapted_sound_keeps_its_bundles_whitening(pair, tmp_path):
     """SOUND is a descriptor: adapted to the two scans, it keeps the shipped bundle's
     whitening (two scans are too few to fit one), and its card says where it came from."""
-    from sphere_jax import api
-    from sphere_jax.features import whitening
+    from sphere_jax.bundles import inference
+    from sphere_jax.bundles import whitening
     (src, dst), _ = pair
     out, note = align.adapted_bundles("sound", {"sound": paths.shipped_bundle("sound")},
                                       src, dst, 0.03, 0.45, 0.05, str(tmp_path))
     statement = whitening.read_statement(out["sound"])["default"]
     assert statement["kept_from"].endswith("sound_mid/bundle") and "sound" in note
-    kept = api.load_bundle(out["sound"]).whitenings["default"]
-    shipped = api.load_bundle("sound").whitenings["default"]
+    kept = inference.load_bundle(out["sound"]).whitenings["default"]
+    shipped = inference.load_bundle("sound").whitenings["default"]
     assert np.array_equal(kept.axes, shipped.axes) and np.array_equal(kept.mean, shipped.mean)
     card = open(os.path.join(out["sound"], "MODEL_CARD.md")).read()
     assert "kept from `sphere_jax/weights/sound_mid/bundle`, fitted for its weights" in card

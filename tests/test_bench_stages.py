@@ -4,13 +4,14 @@ import numpy as np
 import pytest
 
 from experiments.benchmarks import stages
-from sphere_jax import api, paths
+from sphere_jax import paths
+from sphere_jax.bundles import inference
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", stages.KINDS)
 def test_stages_chain_to_the_networks_output(kind):
-    bundle = api.cached_bundle(paths.shipped_bundle(kind, required=True))
+    bundle = inference.cached_bundle(paths.shipped_bundle(kind, required=True))
     rng = np.random.default_rng(0)
     x = (rng.normal(size=(4, bundle.config.data.n_points, 3)) * 0.4).astype(np.float32)
     frames = np.broadcast_to(np.eye(3, dtype=np.float32), (4, 3, 3))

@@ -9,7 +9,8 @@ import tarfile
 import numpy as np
 import pytest
 
-from sphere_jax import api, checks
+from sphere_jax import checks
+from sphere_jax.bundles import inference
 from configs import lead_pn
 from sphere_jax.data import evaluation_scenes, pipeline
 from sphere_jax.training import inputs
@@ -81,7 +82,7 @@ def test_gpu_script_brings_back_a_bundle_stopped_by_its_budget(scans, tmp_path):
                     "--host_devices=1"], cwd=ROOT, env=env, check=True, capture_output=True)
     with tarfile.open(out / "lead_pn_tiny.tar.gz") as t:
         t.extractall(tmp_path / "back", filter="data")
-    b = api.load_bundle(tmp_path / "back" / "lead_pn" / "bundle")
+    b = inference.load_bundle(tmp_path / "back" / "lead_pn" / "bundle")
     assert b.config.model == "lead_pn"
     assert b.config.data.root == scans and b.config.train.pack == str(carry / "pack")
     assert b.config.train.steps_done == 1 < b.config.train.steps == 50    # the budget ended it

@@ -112,7 +112,8 @@ def test_the_checker_finds_a_planted_cycle():
 
 
 @pytest.mark.parametrize("source, expected", [
-    ("def f():\n    from sphere_jax import api\n", {"sphere_jax.api"}),
+    ("def f():\n    from sphere_jax.bundles import inference\n",
+     {"sphere_jax.bundles.inference"}),
     ("from sphere_jax.features import methods as m\n", {"sphere_jax.features.methods"}),
     ("import sphere_jax.paths\n", {"sphere_jax.paths"}),
 ])
@@ -126,12 +127,12 @@ def test_function_level_imports_are_seen(tmp_path, source, expected):
 
 
 def test_the_inference_api_does_not_import_open3d():
-    """The JAX side (api, training's models, the spherical core) never needs open3d: importing
+    """The JAX side (bundles, training's models, the spherical core) never needs open3d: importing
     it must not pull it in (it is a 400 MB library with a system dependency)."""
     import subprocess
     import sys
-    code = ("import sys, sphere_jax.api, sphere_jax.models, sphere_jax.spherical.fused; "
-            "print('open3d' in sys.modules)")
+    code = ("import sys, sphere_jax.bundles.inference, sphere_jax.models, "
+            "sphere_jax.spherical.fused; print('open3d' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
@@ -148,10 +149,10 @@ def _reachable(graph, roots):
 
 
 @pytest.mark.parametrize("layer, forbidden", [
-    ("sphere_jax.registration", ("sphere_jax.eval", "sphere_jax.api", "sphere_jax.features")),
+    ("sphere_jax.registration", ("sphere_jax.eval", "sphere_jax.bundles", "sphere_jax.features")),
     ("sphere_jax.features", ("sphere_jax.eval",)),
     ("sphere_jax.align", ("sphere_jax.eval",)),
-    ("sphere_jax.training", ("sphere_jax.eval", "sphere_jax.api")),
+    ("sphere_jax.training", ("sphere_jax.eval", "sphere_jax.bundles.inference")),
 ])
 def test_library_layers_do_not_reach_the_benchmarks(layer, forbidden):
     """Registration is a library the benchmark uses, never the other way round; descriptors
@@ -166,3 +167,54 @@ def test_library_layers_do_not_reach_the_benchmarks(layer, forbidden):
 def test_the_layer_check_sees_a_transitive_import():
     graph = {"sphere_jax.align": {"sphere_jax.x"}, "sphere_jax.x": {"sphere_jax.eval.scenes"}}
     assert "sphere_jax.eval.scenes" in _reachable(graph, ["sphere_jax.align"])
+
+
+# sphere_jax's sub-packages and top-level modules, lowest first: each imports only from the
+# layers below it (function-local imports included), never from its own layer's other units.
+LAYERS = (
+    ("checks",),
+    ("files", "paths", "workdirs", "parallel", "spherical"),
+    ("models", "data", "compile_cache"),
+    ("registration",),
+    ("bundles",),
+    ("features",),
+    ("training",),
+    ("eval", "align"),
+    ("",),                                # sphere_jax/__init__.py: the public functions
+)
+
+
+def _unit(module):
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def layering_violations(graph, layers=LAYERS):
+    """``'a -> b'`` for every import of a unit from one at its own layer or above."""
+    rank = {u: k for k, layer in enumerate(layers) for u in layer}
+    bad = []
+    for m, deps in graph.items():
+        if m != "sphere_jax" and not m.startswith("sphere_jax."):
+            continue
+        for d in deps:
+            if not d.startswith("sphere_jax") or _unit(d) == _unit(m):
+                continue
+            if rank[_unit(d)] >= rank[_unit(m)]:
+                bad.append(f"{m} -> {d}")
+    return sorted(bad)
+
+
+def test_every_unit_has_a_layer_and_imports_only_below_it():
+    graph, _ = import_graph(_modules())
+    units = {_unit(m) for m in graph if m == "sphere_jax" or m.startswith("sphere_jax.")}
+    placed = {u for layer in LAYERS for u in layer}
+    assert units <= placed, f"units without a layer: {sorted(units - placed)}"
+    assert layering_violations(graph) == []
+
+
+def test_the_layer_rule_sees_an_upward_and_a_sideways_import():
+    graph = {"sphere_jax.data.x": {"sphere_jax.features.y"},
+             "sphere_jax.eval.z": {"sphere_jax.align"},
+             "sphere_jax.features.y": {"sphere_jax.data.x"}}
+    assert layering_violations(graph) == ["sphere_jax.data.x -> sphere_jax.features.y",
+                                          "sphere_jax.eval.z -> sphere_jax.align"]

@@ -94,9 +94,9 @@ def test_two_hosts_equal_one_host_with_two_devices(small_root_parallel, two_devi
     one_host, one_host_params = two_devices_4_steps
     np.testing.assert_array_equal(first, one_host_params)
     # Bundles trained on two devices (or hosts) load in this one-device process.
-    from sphere_jax import api
+    from sphere_jax.bundles import inference
     for run in (tmp_path / "hosts", one_host):
-        loaded = api.load_bundle(run / "bundle")
+        loaded = inference.load_bundle(run / "bundle")
         assert np.isfinite(_frame_parameters(loaded.variables["params"])).all()
     assert len((tmp_path / "hosts" / "metrics.jsonl").read_text().splitlines()) == 4
 

@@ -103,20 +103,20 @@ def test_resumed_training_equals_uninterrupted(small_root, tmp_path):
 def test_time_budget_stops_with_a_checkpoint_and_a_bundle_that_says_so(small_root, tmp_path):
     """A budget shorter than one step ends the loop after that step: logged, checkpointed, a
     bundle recording 1 step; the same command without the budget resumes from it."""
-    from sphere_jax import bundle
+    from sphere_jax.bundles import store
     c = tiny("lead", small_root, steps=3, log_every=2, eval_every=2, checkpoint_every=2,
              time_budget_s=1e-9)
     training.train_and_evaluate(c, str(tmp_path), progress=False)
     lines = (tmp_path / "metrics.jsonl").read_text().splitlines()
     assert [json.loads(ln)["step"] for ln in lines] == [1]
     assert "val_loss" in json.loads(lines[0])
-    stopped = bundle.read_config(str(tmp_path / "bundle"))
-    assert bundle.steps_done(stopped) == 1 and stopped.train.steps == 3    # done, planned
+    stopped = store.read_config(str(tmp_path / "bundle"))
+    assert store.steps_done(stopped) == 1 and stopped.train.steps == 3    # done, planned
     c.train.time_budget_s = 0.0
     training.train_and_evaluate(c, str(tmp_path), progress=False)
     steps = [json.loads(ln)["step"] for ln in (tmp_path / "metrics.jsonl").read_text().splitlines()]
     assert steps == [1, 2, 3]
-    assert bundle.steps_done(bundle.read_config(str(tmp_path / "bundle"))) == 3
+    assert store.steps_done(store.read_config(str(tmp_path / "bundle"))) == 3
 
 
 def _max_difference(tree_a, tree_b):
@@ -128,8 +128,8 @@ def _max_difference(tree_a, tree_b):
 
 def _max_change(bundle_a, bundle_b, collection="params"):
     """The largest change of any variable of ``collection`` between two bundles."""
-    from sphere_jax import api
-    return _max_difference(*(api.load_bundle(p).variables[collection]
+    from sphere_jax.bundles import inference
+    return _max_difference(*(inference.load_bundle(p).variables[collection]
                              for p in (bundle_a, bundle_b)))
 
 
@@ -215,9 +215,9 @@ def test_test_time_adaptation_starts_from_the_bundle(small_root, tmp_path, capsy
     assert re.search(r"adapted bundle in \S+: compass: 2 steps, validation loss [\d.]+ at the "
                      r"last step: those weights used", capsys.readouterr().out)
     # Validated on enough patches that a few flipped frames do not decide when it stops.
-    from sphere_jax import bundle
+    from sphere_jax.bundles import store
     from sphere_jax.training import adaptation
-    train = bundle.read_config(tmp_path / "adapted" / "bundle").train
+    train = store.read_config(tmp_path / "adapted" / "bundle").train
     assert train.eval_batches * train.batch_size >= adaptation.EVAL_PATCHES >= 256
     assert train.frozen_batch_norm is False          # Compass adapts with batch moments
     # The workdir is an adaptation of those weights: the same command resumes it, while a
@@ -238,10 +238,10 @@ def test_an_adaptation_that_never_improves_ships_the_weights_it_started_from(sma
     """Early stopping keeps the best evaluation's weights, and the evaluation before the first
     step counts: at a learning rate that wrecks the network, the bundle is the one it started
     from (step 0 in its log and card)."""
-    from sphere_jax import api, model_card
+    from sphere_jax.bundles import inference, model_card
     config = tiny("lead", small_root, steps=1)
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
-    trained = api.load_bundle(tmp_path / "src" / "bundle")
+    trained = inference.load_bundle(tmp_path / "src" / "bundle")
     path = training.adapt(trained, config.data.root, 6, str(tmp_path / "adapted"),
                           learning_rate=1.0, progress=False, patience=2)
     log = [json.loads(ln) for ln in (tmp_path / "adapted" / "metrics.jsonl").read_text()
@@ -249,7 +249,7 @@ def test_an_adaptation_that_never_improves_ships_the_weights_it_started_from(sma
     assert log[0]["step"] == 0 and "val_loss" in log[0] and "loss" not in log[0]
     assert min(ln["val_loss"] for ln in log[1:] if "val_loss" in ln) > log[0]["val_loss"]
     assert _max_change(tmp_path / "src" / "bundle", path) == 0.0
-    adapted = api.load_bundle(path)
+    adapted = inference.load_bundle(path)
     assert adapted.config.train.best_step == 0 and adapted.config.train.steps_done >= 2
     assert "weights of step 0" in open(f"{path}/{model_card.CARD}").read()
     from sphere_jax.training import adaptation
@@ -261,7 +261,7 @@ def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path,
     """An autoencoder adapts too: ``--minutes`` stops it (the first step's compilation alone
     outlasts 1.2 s) and the scale is chosen from the scans and printed."""
     from experiments import adapt
-    from sphere_jax import api, bundle
+    from sphere_jax.bundles import inference, store
     config = tiny("lead", small_root, steps=1)
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
     adapt.main([f"--bundle={tmp_path / 'src' / 'bundle'}", f"--data={config.data.root}",
@@ -269,8 +269,8 @@ def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path,
                 f"--workdir={tmp_path / 'adapted'}"])
     printed = capsys.readouterr().out
     assert "adapting lead on" in printed and "voxel" in printed and "0.02 min" in printed
-    adapted = api.load_bundle(tmp_path / "adapted" / "bundle")
-    assert 1 <= bundle.steps_done(adapted.config) < 50
+    adapted = inference.load_bundle(tmp_path / "adapted" / "bundle")
+    assert 1 <= store.steps_done(adapted.config) < 50
     assert adapted.config.data.voxel != config.data.voxel          # chosen from the scans
     # From the bundle, not an init (the warm-up's first step has rate 0: it may not move yet).
     assert _max_change(tmp_path / "src" / "bundle", tmp_path / "adapted" / "bundle") < 5e-3
@@ -283,19 +283,19 @@ def test_lead_adapts_for_minutes_at_the_scale_of_the_scans(small_root, tmp_path,
 def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path, monkeypatch):
     """A bundle trained with copies from another scan (ground-truth poses) adapts on second
     draws of the support: the poses of the scans it adapts on are never read."""
-    from sphere_jax import api
+    from sphere_jax.bundles import inference
     from sphere_jax.data import poses
     config = tiny("compass", small_root, steps=1)
     config.data.copy_draw = "scan"
     training.train_and_evaluate(config, str(tmp_path / "src"), progress=False)
-    trained = api.load_bundle(tmp_path / "src" / "bundle")
+    trained = inference.load_bundle(tmp_path / "src" / "bundle")
 
     def no_ground_truth(*_):
         raise AssertionError("adaptation read ground-truth poses")
     monkeypatch.setattr(poses, "scene_poses", no_ground_truth)
     path = training.adapt(trained, config.data.root, 1, str(tmp_path / "adapted"),
                           progress=False)
-    assert api.load_bundle(path).config.data.copy_draw == "support"
+    assert inference.load_bundle(path).config.data.copy_draw == "support"
     with pytest.raises(checks.ConfigError, match="ground-truth poses"):
         training.adapt(trained, config.data.root, 1, str(tmp_path / "again"), progress=False,
                        data={"copy_draw": "scan"})
@@ -415,7 +415,7 @@ def test_a_continued_run_keeps_the_schedule_of_the_uninterrupted_one(small_root,
     """Warm-up and cosine decay are a function of the global step: a run stopped by its budget
     and continued on 'another machine' from its bundle logs, step for step, the learning rates
     of the uninterrupted run; a bundle trained on another schedule is refused."""
-    from sphere_jax import bundle
+    from sphere_jax.bundles import store
     sched = dict(schedule="warmup_cosine", warmup_steps=2, final_lr_fraction=0.1, log_every=1,
                  eval_every=8, checkpoint_every=8)
     whole = tiny("lead", small_root, steps=6, **sched)
@@ -424,7 +424,7 @@ def test_a_continued_run_keeps_the_schedule_of_the_uninterrupted_one(small_root,
                        (tmp_path / w / "metrics.jsonl").read_text().splitlines()}
     first = tiny("lead", small_root, steps=6, time_budget_s=1e-9, **sched)
     training.train_and_evaluate(first, str(tmp_path / "a"), progress=False)
-    assert bundle.steps_done(bundle.read_config(str(tmp_path / "a" / "bundle"))) == 1
+    assert store.steps_done(store.read_config(str(tmp_path / "a" / "bundle"))) == 1
     more = tiny("lead", small_root, steps=6, init_bundle=str(tmp_path / "a" / "bundle"), **sched)
     training.train_and_evaluate(more, str(tmp_path / "b"), progress=False)
     expected = rates("whole")

@@ -8,7 +8,8 @@ import os
 
 import pytest
 
-from sphere_jax import bundle, paths
+from sphere_jax import paths
+from sphere_jax.bundles import store
 from sphere_jax.data import evaluation_scenes, pipeline
 
 ROOT = paths.weights_root()
@@ -28,8 +29,8 @@ def test_every_shipped_kind_is_checked_here():
 
 @pytest.mark.parametrize("path", BUNDLES, ids=_name)
 def test_no_bundle_saw_an_evaluation_scene(path):
-    stated = bundle.read_training_data(path)
-    configured = pipeline.root_entries(bundle.read_config(path).data.get("root", ""))
+    stated = store.read_training_data(path)
+    configured = pipeline.root_entries(store.read_config(path).data.get("root", ""))
     seen = evaluation_scenes.scenes_of(list(stated["folders"]) + configured)
     seen += stated.get("evaluation_scenes", [])
     assert not seen, f"{_name(path)} was trained on evaluation scans: {seen}"
@@ -51,6 +52,6 @@ def test_every_shipped_bundle_has_a_recipe():
 def test_shipped_bundle_is_what_its_command_trains(name):
     """``python -m experiments.train --config=RECIPE:mid`` reproduces the shipped bundle: its
     config (fields, data and schedule) is the command's config."""
-    shipped = bundle.read_config(paths.shipped_bundle(name, required=True))
+    shipped = store.read_config(paths.shipped_bundle(name, required=True))
     recipe = importlib.import_module(f"configs.{paths.RECIPES[name]}").get_config("mid")
     assert _comparable(shipped) == _comparable(recipe)

@@ -132,12 +132,13 @@ def unrolled_gflop(jitted, *args):
 
 def _flops(method, chunk_patches):
     """GFLOP per patch of the networks ``method`` runs (None: no network)."""
-    from sphere_jax import api, paths
+    from sphere_jax import paths
+    from sphere_jax.bundles import inference
     if method not in NETWORKS:
         return None
     total = 0.0
     for kind, what in NETWORKS[method]:
-        b = api.cached_bundle(paths.shipped_bundle(kind, required=True))
+        b = inference.cached_bundle(paths.shipped_bundle(kind, required=True))
         x = chunk_patches[:, :b.config.data.n_points]
         if what == "orient":
             total += unrolled_gflop(b._orient_fn, x) / len(x)

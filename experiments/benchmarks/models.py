@@ -18,7 +18,8 @@ import jax
 import numpy as np
 
 from experiments.benchmarks import common
-from sphere_jax import api, models, parallel, paths
+from sphere_jax import models, parallel, paths
+from sphere_jax.bundles import inference
 from sphere_jax.data import patches
 from sphere_jax.data.readers import io
 
@@ -50,7 +51,7 @@ def run(sizes=("small", "paper"), repeats=3, keypoints=5000, only=None, **_):
             if (hasattr(model, "fused") and models.spec(config.model).describe is not None
                     and down is not None):
                 for key, fused in (("describe_ms_per_kp", True), ("unfused_ms_per_kp", False)):
-                    bundle = api.Bundle(model.clone(fused=fused), variables, config)
+                    bundle = inference.Bundle(model.clone(fused=fused), variables, config)
                     # Keypoints with too little support are left out, as the evaluations do.
                     describe = lambda k: bundle.describe(down, k, radius=0.3,
                                                          on_invalid="mask")[1]

@@ -56,14 +56,15 @@ def run(repeats=5, keypoints=5000, **_):
 
 def _memory_child(k, mode):
     """In a fresh process: peak RSS (MB) and seconds of drawing K supports."""
-    from sphere_jax import api, parallel
+    from sphere_jax import parallel
+    from sphere_jax.bundles import inference
     from sphere_jax.data import patches, supports
     _, points = _fragment()
     rng = np.random.default_rng(0)
     kp = np.sort(rng.choice(len(points), k, replace=k > len(points)))
     t0 = time.perf_counter()
     if mode == "LEAD describe":                           # the whole API call, shipped LEAD
-        api.load_bundle("lead").describe(points, kp, on_invalid="mask")
+        inference.load_bundle("lead").describe(points, kp, on_invalid="mask")
     elif mode == "streamed":
         stream = supports.SupportStream(points, kp, RADIUS, N_POINTS, 0, supports.MIN_SUPPORT)
         # A stand-in network: the first point of each patch (the supports are what is measured).

@@ -150,14 +150,15 @@ def whole_network(bundle, patches, frames):
 def run(repeats=5, only=None, **_):
     from experiments.benchmarks.describe import fragments, unrolled_gflop
     from experiments.benchmarks.layers import matmul_gflops
-    from sphere_jax import api, paths
+    from sphere_jax import paths
+    from sphere_jax.bundles import inference
     peak = matmul_gflops()
     frag, _ = fragments(4 * CHUNK)
     records = []
     for kind in KINDS:
         if only and only not in kind:
             continue
-        bundle = api.cached_bundle(paths.shipped_bundle(kind, required=True))
+        bundle = inference.cached_bundle(paths.shipped_bundle(kind, required=True))
         stream = bundle.supports(frag.points, frag.keypoints[:2 * CHUNK])
         stream.check("mask")                     # keypoints with too little support: left out
         x = np.asarray(stream.make(0, min(CHUNK, stream.n))[0], np.float32)

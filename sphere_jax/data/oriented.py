@@ -8,7 +8,7 @@ fingerprint, the shape set, its split and the turns. Only the centres ``[S, 1, 3
 ``[S, 3, 3]`` are kept (seeded turns are drawn again); the shapes are turned again on load.
 
 ``orienter`` is anything with ``frames(shapes_BxNx3) -> (centres, frames)`` and a ``key``
-(:class:`sphere_jax.api.ShapeOrienter`).
+(:class:`sphere_jax.bundles.inference.ShapeOrienter`).
 """
 from __future__ import annotations
 

@@ -20,7 +20,8 @@ import jax
 import ml_collections
 import numpy as np
 
-from sphere_jax import api, training
+from sphere_jax import training
+from sphere_jax.bundles import inference
 from sphere_jax.data.readers.io import atomic_write
 from sphere_jax.eval import registration, report
 
@@ -61,7 +62,7 @@ def train_variant(config, name, workdir, progress=True):
 
 def forward_ms(bundle_path, batch, repeats=5, seed=0):
     """Median wall time (ms) of the encoder on ``batch`` random unit patches, compiled first."""
-    b = api.load_bundle(bundle_path)
+    b = inference.load_bundle(bundle_path)
     pts = np.random.default_rng(seed).normal(size=(batch, b.config.data.n_points, 3))
     pts = (pts / np.linalg.norm(pts, axis=2, keepdims=True)).astype(np.float32)
     fn = jax.jit(lambda p: b.model.apply(b.variables, p, method="encode"))

@@ -17,8 +17,9 @@ import jax
 import ml_collections
 import numpy as np
 
-from sphere_jax import api, checks, files, model_card, training
-from sphere_jax import bundle as bundle_files
+from sphere_jax import checks, files, training
+from sphere_jax.bundles import inference, model_card
+from sphere_jax.bundles import store
 from sphere_jax.data import oriented
 from sphere_jax.eval import report
 
@@ -58,7 +59,7 @@ def method_config(config, method):
     orients, turned = METHODS[method]
     c.orient_bundle = config.compass_bundle if orients else ""
     c.data.rotate = turned
-    if orients and not bundle_files.is_bundle(api.bundle_path(c.orient_bundle)):
+    if orients and not store.is_bundle(inference.bundle_path(c.orient_bundle)):
         raise checks.MissingError(
             f"compass_bundle={c.orient_bundle!r} is not a bundle; train one with "
             f"python -m experiments.train --config=compass_shapes:mid")
@@ -80,7 +81,7 @@ def bundles(config) -> dict:
     names = _methods(config)
     out = {f"classifier:{m}": _classifier(config, m) for m in names if _classifier(config, m)}
     if any(METHODS.get(m, (False,))[0] for m in names):
-        out["compass_shapes"] = api.bundle_path(config.compass_bundle)
+        out["compass_shapes"] = inference.bundle_path(config.compass_bundle)
     return out
 
 
@@ -97,18 +98,18 @@ def classifier(config, method, workdir, progress=True):
     evaluation's config in ``workdir/<method>``."""
     given = _classifier(config, method)
     if given:
-        path = api.bundle_path(given)
-        trained = bundle_files.read_config(path)
+        path = inference.bundle_path(given)
+        trained = store.read_config(path)
         if trained.model != "classify" or bool(trained.get("orient_bundle")) != METHODS[method][0]:
             raise checks.ConfigError(f"config.classifiers.{method}", "a classifier bundle "
                                      "trained as the method says (oriented by Compass or not)",
                                      given)
-        return api.load_bundle(path), path
+        return inference.load_bundle(path), path
     sub = os.path.join(workdir, method.replace("+", "_"))
     c = method_config(config, method)
-    orient = api.shape_orienter(c.orient_bundle) if c.orient_bundle else None
+    orient = inference.shape_orienter(c.orient_bundle) if c.orient_bundle else None
     training.train_and_evaluate(c, sub, progress, orient_shapes=orient)
-    return api.load_bundle(os.path.join(sub, "bundle")), os.path.join(sub, "bundle")
+    return inference.load_bundle(os.path.join(sub, "bundle")), os.path.join(sub, "bundle")
 
 
 def frame_angles(turns_Sx3x3, canonical_Sx3x3, turned_Sx3x3):
@@ -137,7 +138,7 @@ def run(config, workdir, progress=True):
     views = {"NR": shapes, "AR": turned}
     in_frames, angle = {}, None
     if any(METHODS[m][0] for m in names):             # each test shape oriented once
-        orienter = api.shape_orienter(config.compass_bundle)
+        orienter = inference.shape_orienter(config.compass_bundle)
         found = {"NR": oriented.frames(orienter, shapes, {**what, "turns": None}, progress),
                  "AR": oriented.frames(orienter, turned,
                                        {**what, "turns": int(config.eval_rotation_seed)},
@@ -164,7 +165,7 @@ def training_row(method, model, path):
     """What ``method``'s classifier cost to train: steps × batch and the training loop's wall
     time, from its bundle's log."""
     lines = model_card.read_metrics(os.path.join(path, model_card.METRICS))
-    return {"method": method, "steps": bundle_files.steps_done(model.config),
+    return {"method": method, "steps": store.steps_done(model.config),
             "batch": int(model.config.train.batch_size),
             "train_min": model_card.wall_time_s(lines, model.config.train.batch_size) / 60}
 

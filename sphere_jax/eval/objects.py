@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import api
+from sphere_jax.bundles import inference
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import washington
 from sphere_jax.data.readers.washington import Sample
@@ -147,7 +147,7 @@ def run(config, workdir, progress=True):
     root = config.data.root or synthetic.default_root("washington", config.seed)
     cats = [c.strip() for c in config.data.categories.split(",") if c.strip()] or None
     samples = washington.read_dataset(root, cats)
-    shape = shape_feature(api.load_bundle(config.bundle)) if config.bundle else None
+    shape = shape_feature(inference.load_bundle(config.bundle)) if config.bundle else None
     if shape is None:
         warnings.warn("no descriptor bundle: colour features only", stacklevel=2)
     feats = features(samples, hsv_histogram, shape, progress)

@@ -15,7 +15,8 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import api, bundle, models, training
+from sphere_jax import models, training
+from sphere_jax.bundles import inference, store
 from sphere_jax.eval import processes, report, resume, tasks
 from sphere_jax.eval import scenes as scene_lib
 from sphere_jax.features import methods as method_lib
@@ -128,7 +129,7 @@ def adapted_bundles(config, bundles, names, workdir, progress):
     out = dict(bundles)
     for kind, spec in models.SPECS.items():
         if spec.orient is not None and kind in names:
-            trained = api.load_bundle(bundles[kind])
+            trained = inference.load_bundle(bundles[kind])
             folder = os.path.join(workdir, f"adapted_{kind}")
             _set_aside_if_stale(folder, trained)
             out[kind] = training.adapt(trained, scene_lib.data_root(config),
@@ -143,7 +144,7 @@ def _set_aside_if_stale(folder, trained):
     retrained since) is this run's own leftover: moved to ``folder-of-<digest>``, kept, so
     that the rerun adapts afresh instead of being refused."""
     old = checkpoints.started_from(folder)
-    if os.path.isdir(folder) and old != bundle.variables_digest(trained.variables):
+    if os.path.isdir(folder) and old != store.variables_digest(trained.variables):
         aside, n = f"{folder}-of-{old or 'unrecorded'}", 1
         while os.path.exists(aside):
             n += 1

@@ -15,7 +15,7 @@ import pickle
 import re
 import shutil
 
-from sphere_jax import bundle as bundle_files
+from sphere_jax.bundles import store
 from sphere_jax import files
 from sphere_jax.data import supports
 from sphere_jax.features import registry
@@ -32,7 +32,7 @@ class _Keys:
                     if k not in ("methods", "bundles", "bundle")}
         text = json.dumps(settings, sort_keys=True, default=str)
         self.key = hashlib.sha256(text.encode()).hexdigest()[:16]
-        self.prints = {k: bundle_files.fingerprint(p) for k, p in sorted(bundles.items()) if p}
+        self.prints = {k: store.fingerprint(p) for k, p in sorted(bundles.items()) if p}
 
     def tag(self, method):
         """Short hash of the fingerprints of the bundles ``method`` uses and of how its

@@ -14,7 +14,8 @@ import os
 import time
 import warnings
 
-from sphere_jax import bundle, checks, paths, workdirs
+from sphere_jax import checks, paths, workdirs
+from sphere_jax.bundles import store
 from sphere_jax.data.readers import io
 from sphere_jax.eval import resume
 from sphere_jax.features import methods, registry
@@ -73,7 +74,7 @@ def run(config, workdir, progress=True, command=None):
 def bundles_used(config):
     """Kind -> ``{'path', 'steps_done', 'fingerprint'}`` of the bundles an evaluation config
     names (the classification's whole-shape Compass as ``compass_shapes``)."""
-    from sphere_jax import api
+    from sphere_jax.bundles import inference
     out = {}
     if "bundles" in config:
         chosen = bundle_paths(config)
@@ -84,12 +85,12 @@ def bundles_used(config):
         module = task_module(config.task)
         chosen = module.bundles(config) if hasattr(module, "bundles") else {}
     for kind, path in sorted(chosen.items()):
-        path = api.bundle_path(path) if path else path
-        if path and bundle.is_bundle(path):
+        path = inference.bundle_path(path) if path else path
+        if path and store.is_bundle(path):
             inside = not paths.relative(path).startswith("..")
             out[kind] = {"path": paths.relative(path) if inside else paths.portable(path),
-                         "steps_done": bundle.steps_done(bundle.read_config(path)),
-                         "fingerprint": bundle.fingerprint(path)}
+                         "steps_done": store.steps_done(store.read_config(path)),
+                         "fingerprint": store.fingerprint(path)}
     return out
 
 
@@ -97,10 +98,10 @@ def bundle_paths(config):
     """Kind -> bundle path: the config's defaults, ``config.bundle`` replacing its kind's."""
     paths = dict(config.bundles.to_dict())
     if config.bundle:
-        if not bundle.is_bundle(config.bundle):
+        if not store.is_bundle(config.bundle):
             raise checks.ConfigError("config.bundle", "a bundle folder (with config.json)",
                                      config.bundle)
-        paths[bundle.read_config(config.bundle).model] = config.bundle
+        paths[store.read_config(config.bundle).model] = config.bundle
     return paths
 
 
@@ -109,7 +110,7 @@ def check_bundles(config, names):
     methods ``names`` need and that is not a bundle folder."""
     if "bundles" not in config:
         return
-    from sphere_jax import api
+    from sphere_jax.bundles import inference
     chosen = bundle_paths(config)
     needed = _kinds(names)
     for kind, path in sorted(chosen.items()):
@@ -122,10 +123,10 @@ def check_bundles(config, names):
         path = chosen.get(kind)
         if not path:
             continue
-        if not bundle.is_bundle(api.bundle_path(path)):
+        if not store.is_bundle(inference.bundle_path(path)):
             raise checks.ConfigError(f"config.bundles.{kind}",
                                      "a bundle folder (with config.json)", path)
-        model = bundle.read_config(api.bundle_path(path)).model
+        model = store.read_config(inference.bundle_path(path)).model
         if model != kind:
             raise checks.ConfigError(f"config.bundles.{kind} must be a {kind} bundle; got "
                                      f"{path!r}, a {model} bundle")

@@ -19,7 +19,8 @@ from typing import Callable
 
 import numpy as np
 
-from sphere_jax import api, parallel
+from sphere_jax import parallel
+from sphere_jax.bundles import inference
 from sphere_jax.data import supports
 from sphere_jax.features import descriptors, lrfs, registry
 from sphere_jax.features.neighbourhood import radius_neighbourhoods
@@ -37,7 +38,7 @@ FLARE_POINTS = 1225
 
 
 def _bundle(path):
-    return api.cached_bundle(path)
+    return inference.cached_bundle(path)
 
 
 def bundles_needed(names, bundles: dict):
@@ -87,7 +88,8 @@ def descriptor(name, radius, bundles=None, fpfh_radius=None, chunk=None):
 def descriptor_of_many(name, radius, bundles=None, fpfh_radius=None, chunk=None):
     """``describe_all([fragment, ...]) -> [[K, D], ...]`` for method ``name``, as
     :func:`descriptor`: a learned one describes all the fragments in one stream of chunks
-    (:meth:`~sphere_jax.api.Bundle.describe_clouds`), with the values of one at a time."""
+    (:meth:`~sphere_jax.bundles.inference.Bundle.describe_clouds`), with the values of one at a
+    time."""
     bundles = bundles or {}
     name = registry.resolve(name, ("descriptor",), "name").key
     missing = bundles_needed([name], bundles)
@@ -170,7 +172,7 @@ def lrf(name, radius, bundles=None, chunk=None):
     if name == "flare":
         def orient(f, idx):
             p = supports.extract_unit_patches(f.points, idx, radius, FLARE_POINTS)
-            return parallel.run_chunked(api.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
+            return parallel.run_chunked(inference.FLARE_BATCH, p, chunk).reshape(-1, 3, 3)
         return orient
     if name == "shot":
         return lambda f, idx: lrfs.shot_lrf(neighbourhoods(f, idx, radius))

@@ -6,8 +6,10 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from sphere_jax import api, parallel
-from sphere_jax.features import descriptors, lrfs, registry, whitening
+from sphere_jax import parallel
+from sphere_jax.bundles import inference
+from sphere_jax.features import descriptors, lrfs, registry
+from sphere_jax.bundles import whitening
 from sphere_jax.features import methods as method_lib
 from sphere_jax.models import lead as lead_model
 from sphere_jax.registration.vote import HYPOTHESES, TOL_DEG, VotedFrames
@@ -33,8 +35,8 @@ def _shot_vote(radius):
 
 
 def _lead_vote(radius, bundles, chunk, whiten):
-    lead = api.cached_bundle(bundles["lead"])
-    compass = api.cached_bundle(bundles["compass"])
+    lead = inference.cached_bundle(bundles["lead"])
+    compass = inference.cached_bundle(bundles["compass"])
     turn = jax.jit(lead_model.canonical_descriptors)
     # The first pass matches in Compass's frames (their whitening); the second in one frame
     # per scan, where no map is in a canonical pose: the rotation average of the statistics.
@@ -82,7 +84,7 @@ def voted_frames(name, radius, bundles=None, chunk=None, tol_deg=TOL_DEG,
     ``radius`` metres; ``bundles`` maps lead and compass to bundle paths; ``hypotheses`` modes
     of each pair's vote are tried, and with ``box`` the box turns of the strongest. With
     ``whiten``, LEAD's maps are whitened as its bundle's statistics say (first pass: its
-    ``compass`` whitening; second: :func:`~sphere_jax.features.whitening.rotation_averaged`);
+    ``compass`` whitening; second: :func:`~sphere_jax.bundles.whitening.rotation_averaged`);
     a bundle without a whitening matches raw maps."""
     bundles = bundles or {}
     name = registry.resolve(name, ("voted",), "name").key

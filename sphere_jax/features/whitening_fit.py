@@ -14,9 +14,11 @@ import time
 import numpy as np
 from tqdm.auto import tqdm
 
-from sphere_jax import api, bundle as bundle_files, checks, model_card, paths
+from sphere_jax import checks, paths
+from sphere_jax.bundles import inference, model_card, store
 from sphere_jax.data import pipeline
-from sphere_jax.features import methods, whitening
+from sphere_jax.features import methods
+from sphere_jax.bundles import whitening
 
 SCANS, KEYPOINTS = 12, 1500     # 18 000 keypoints: 35× LEAD's 512 dimensions
 
@@ -39,8 +41,8 @@ def training_clouds(config, scans=SCANS, keypoints=KEYPOINTS, seed=0, progress=T
 def descriptor_bundle(bundle_arg):
     """``(folder, Bundle)`` of a bundle argument that must describe (checked, named); cached,
     so that checking the argument first does not load the bundle twice."""
-    path = api.bundle_path(bundle_arg)
-    model = api.cached_bundle(path)
+    path = inference.bundle_path(bundle_arg)
+    model = inference.cached_bundle(path)
     if model.spec.describe is None:
         raise checks.InputError("bundle", "a descriptor bundle (lead, lead_pn, sound)",
                                 f"one of kind {model.kind!r}")
@@ -49,7 +51,7 @@ def descriptor_bundle(bundle_arg):
 
 def frame_bundle(bundle_arg):
     """The Compass-like bundle of a ``compass`` argument: one that orients (checked, named)."""
-    model = api.cached_bundle(api.bundle_path(bundle_arg))
+    model = inference.cached_bundle(inference.bundle_path(bundle_arg))
     if model.spec.orient is None:
         raise checks.InputError("compass", "a bundle that orients (compass)",
                                 f"one of kind {model.kind!r}")
@@ -60,7 +62,7 @@ def fit_if_descriptor(bundle_dir, compass=None, command=None, progress=True):
     """:func:`fit_bundle` with the default scans and keypoints when ``bundle_dir`` describes
     (LEAD, LEAD-PN, SOUND); None for other kinds. What ``experiments.train`` runs on the
     bundle it writes."""
-    if api.cached_bundle(api.bundle_path(bundle_dir)).spec.describe is None:
+    if inference.cached_bundle(inference.bundle_path(bundle_dir)).spec.describe is None:
         return None
     return fit_bundle(bundle_dir, compass, command=command, progress=progress)
 
@@ -75,7 +77,7 @@ def keep_from(source_dir, bundle_dir):
     LEAD (Compass) 0.080 against 0.092 (registration recall 0.50 against 0.55) — a few scans
     of one object vary along fewer directions than the rooms, and whitening blows up the
     rest (docs/training.md)."""
-    source_dir = api.bundle_path(source_dir)
+    source_dir = inference.bundle_path(source_dir)
     kept = whitening.load(source_dir)
     if kept:
         statement = {name: dict(fit, kept_from=paths.relative(source_dir))
@@ -91,7 +93,7 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
     Compass bundle for LEAD's ``compass`` source; None: the shipped one) and render its model
     card again. Returns ``{source: keypoints used}``."""
     bundle_dir, model = descriptor_bundle(bundle_dir)
-    frame_paths = {"compass": api.bundle_path(compass or "compass")} \
+    frame_paths = {"compass": inference.bundle_path(compass or "compass")} \
         if model.spec.describe_frames else {}
     frame_bundles = {k: frame_bundle(p) for k, p in frame_paths.items()}
     start = time.perf_counter()
@@ -121,7 +123,7 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
             "dimensions_kept": int(fitted[name].axes.shape[1]), "eps": whitening.EPS,
             "frames": ("the kind's own" if name == "default" else
                        f"{name} bundle {paths.relative(frame_paths[name])} "
-                       f"({bundle_files.fingerprint(frame_paths[name])})"),
+                       f"({store.fingerprint(frame_paths[name])})"),
             "command": command or ""}
     whitening.save(bundle_dir, fitted, statement)
     model_card.render(bundle_dir)                    # the card states what was fitted

@@ -1,6 +1,6 @@
 """Shape classification (thesis 3.3): PointNet on whole shapes, trained on labels; on shapes
 oriented by a whole-shape Compass it becomes rotation invariant (the ``orient_bundle`` of a
-``classify`` config, :func:`sphere_jax.api.orient_shapes`)."""
+``classify`` config, :func:`sphere_jax.bundles.inference.orient_shapes`)."""
 from __future__ import annotations
 
 from typing import NamedTuple, Sequence

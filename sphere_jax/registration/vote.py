@@ -12,7 +12,7 @@ truth, with R̂ read from the two scans alone.
 It stays rotation-invariant: turning scan j by Q turns its LRFs by Q, so R̂ becomes R̂ Qᵀ and
 scan j's second frame Q R̂ᵀ turns with it. Turning scan i turns both scans' second-pass
 descriptors by one rotation, which leaves distances unchanged only in coordinates where a turn
-is orthogonal: LEAD's whitened maps are (:func:`~sphere_jax.features.whitening.
+is orthogonal: LEAD's whitened maps are (:func:`~sphere_jax.bundles.whitening.
 rotation_averaged`), its raw grid values are not (their distances move by up to 16 %). It serves
 any LRF-based descriptor (:class:`VotedFrames` takes the two passes as functions);
 :mod:`sphere_jax.features.voted` makes ``lead_vote`` (LEAD, first pass in Compass's frames) and

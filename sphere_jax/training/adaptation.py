@@ -9,7 +9,8 @@ import os
 
 import ml_collections
 
-from sphere_jax import bundle, checks, model_card, models
+from sphere_jax import checks, models
+from sphere_jax.bundles import model_card, store
 from sphere_jax.training import loop
 
 # Without a step count, a time budget decides: the steps are capped by this.
@@ -108,7 +109,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
         config.data.copy_draw = "support"
     config.train.init_bundle = config.train.finetune_bundle = ""
     # Which weights this adapts: a workdir holding an adaptation of others is refused.
-    config.train.started_from = bundle.variables_digest(trained.variables)
+    config.train.started_from = store.variables_digest(trained.variables)
     config.train.steps = int(steps)
     config.train.update(schedule="warmup_cosine", warmup_steps=min(WARMUP, int(steps) - 1),
                         final_lr_fraction=1.0,       # after the warm-up, constant
@@ -138,7 +139,7 @@ def outcome(bundle_dir) -> str:
     """What an adaptation did, in one line, from its bundle's own log and config: the steps
     run, the validation loss at the start and at the weights the bundle kept (the last
     step's without early stopping)."""
-    config = bundle.read_config(bundle_dir)
+    config = store.read_config(bundle_dir)
     steps, curves = model_card.validation_curve(
         model_card.read_metrics(os.path.join(str(bundle_dir), model_card.METRICS)))
     val, best = curves.get("val_loss") or [], config.train.get("best_step")

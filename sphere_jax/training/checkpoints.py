@@ -11,7 +11,8 @@ import warnings
 import jax
 import orbax.checkpoint as ocp
 
-from sphere_jax import bundle, checks, files, parallel
+from sphere_jax import checks, files, parallel
+from sphere_jax.bundles import store
 
 
 def checkpoint_manager(workdir, config):
@@ -53,7 +54,7 @@ def claim_workdir(workdir, config):
 
 def started_from(workdir) -> str:
     """The digest of the trained weights the run in ``workdir`` adapted or fine-tuned
-    (``train.started_from``, :func:`sphere_jax.bundle.variables_digest`); '' for a run from
+    (``train.started_from``, :func:`sphere_jax.bundles.store.variables_digest`); '' for a run from
     scratch, a continued one, or no run."""
     path = os.path.join(workdir, WORKDIR_CONFIG)
     if not os.path.isfile(path):
@@ -69,7 +70,7 @@ def _started_from(recorded: dict) -> str:
 def record_workdir(workdir, config):
     """Written once the run has restored or started: what :func:`claim_workdir` checks."""
     if jax.process_index() == 0:
-        bundle.write_json(os.path.join(workdir, WORKDIR_CONFIG), config.to_json(indent=1))
+        store.write_json(os.path.join(workdir, WORKDIR_CONFIG), config.to_json(indent=1))
 
 
 def _plain(c):
@@ -91,7 +92,7 @@ def restore_newest(mngr, workdir, config, state, mesh):
             raise checks.ConfigError(
                 f"--workdir {workdir} holds checkpoints of another model than this config's "
                 f"{config.model} (step {step} differs at {diff}): choose another workdir")
-        restored, reason = bundle.restore_quietly(
+        restored, reason = store.restore_quietly(
             lambda: mngr.restore(step, args=ocp.args.StandardRestore(abstract)))
         if reason is None:
             return step, restored, mngr
@@ -112,7 +113,7 @@ def restore_newest(mngr, workdir, config, state, mesh):
 def _shapes(tree):
     """The model's part of a state (the optimiser's namedtuples come back from metadata as
     plain containers, with other key strings)."""
-    return bundle.tree_shapes({part: tree[part] for part in ("params", "batch_stats")})
+    return store.tree_shapes({part: tree[part] for part in ("params", "batch_stats")})
 
 
 def _checkpoint_shapes(workdir, step):
@@ -137,4 +138,4 @@ def truncate_metrics(path, last_step):
 def save_bundle(workdir, config, state, training_data=None):
     """The inference bundle ``workdir/bundle`` (:mod:`sphere_jax.bundle`)."""
     variables = {"params": state["params"], "batch_stats": state["batch_stats"]}
-    return bundle.save(os.path.join(workdir, "bundle"), config, variables, training_data)
+    return store.save(os.path.join(workdir, "bundle"), config, variables, training_data)

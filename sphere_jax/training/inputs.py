@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import os
 
-from sphere_jax import bundle, checks, models
+from sphere_jax import checks, models
+from sphere_jax.training import warm_start
 from sphere_jax.data import evaluation_scenes, oriented, pipeline
 from sphere_jax.data.generators import synthetic
 
@@ -71,12 +72,12 @@ def build_source(config, orient_shapes=None, progress=True):
 def check_orient(config, orient_shapes):
     """A classifier trained on oriented shapes (``config.orient_bundle``) needs the function
     that orients them; training runs no bundle itself, so the caller passes it
-    (:func:`sphere_jax.api.shape_orienter`)."""
+    (:func:`sphere_jax.bundles.inference.shape_orienter`)."""
     if config.get("orient_bundle") and orient_shapes is None:
         raise checks.ConfigError(
             "config.orient_bundle", "empty unless train_and_evaluate gets orient_shapes= "
-            "(sphere_jax.api.shape_orienter(config.orient_bundle); experiments.train passes "
-            "it)", config.orient_bundle)
+            "(sphere_jax.bundles.inference.shape_orienter(config.orient_bundle); "
+            "experiments.train passes it)", config.orient_bundle)
 
 
 def get_batch(config, source, step, split="train"):
@@ -86,10 +87,10 @@ def get_batch(config, source, step, split="train"):
     random before, with ``data.rotate``)."""
     spec, bs = models.spec(config.model), config.train.batch_size
     if not isinstance(source, pipeline.ShapeSource):
+        added = warm_start.DATA_ADDED
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
-                            copy_draw=config.data.get("copy_draw", bundle.DATA_ADDED["copy_draw"]),
-                            copy_jitter=config.data.get("copy_jitter",
-                                                        bundle.DATA_ADDED["copy_jitter"]))
+                            copy_draw=config.data.get("copy_draw", added["copy_draw"]),
+                            copy_jitter=config.data.get("copy_jitter", added["copy_jitter"]))
     if not spec.labelled:                                       # Compass on whole shapes
         return source.batch(step, bs, split, copies=spec.copies,
                             occlusion=config.data.occlusion)

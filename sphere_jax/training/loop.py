@@ -24,9 +24,10 @@ import orbax.checkpoint as ocp
 from jax.sharding import PartitionSpec as P
 from tqdm import tqdm
 
-from sphere_jax import bundle, checks, model_card, models, parallel, workdirs
+from sphere_jax import checks, models, parallel, workdirs
+from sphere_jax.bundles import model_card, store
 from sphere_jax.data.prefetch import Prefetch
-from sphere_jax.training import checkpoints
+from sphere_jax.training import checkpoints, warm_start
 from sphere_jax.training.inputs import build_source, check_orient, check_roots, get_batch
 
 
@@ -195,20 +196,21 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     ``train.time_budget_s`` > 0 ends the loop early once it has run that long (a lent machine's
     minutes): the step it stops at is logged, evaluated and checkpointed like the last, and the
     bundle records the steps done, so the same command with a later budget resumes.
-    ``command``: the command line, for the bundle's model card (:mod:`sphere_jax.model_card`).
-    ``orient_shapes``: what turns a classifier's shapes into the frames of
-    ``config.orient_bundle`` (:func:`sphere_jax.api.shape_orienter`; required with it)."""
+    ``command``: the command line, for the bundle's model card
+    (:mod:`sphere_jax.bundles.model_card`). ``orient_shapes``: what turns a classifier's shapes
+    into the frames of ``config.orient_bundle``
+    (:func:`sphere_jax.bundles.inference.shape_orienter`; required with it)."""
     checks.config_values(config)
     models.spec(config.model)                           # an unknown kind, before any work
     for field in ("init_bundle", "finetune_bundle"):     # a resumed run reads neither, but a
         if config.train.get(field):                      # wrong path is still a typo to say
-            bundle.read_config(config.train[field])
+            store.read_config(config.train[field])
     if config.train.get("finetune_bundle") and not config.train.get("started_from"):
         # Which weights it fine-tunes: a workdir holding a fine-tune of others (the bundle was
         # retrained since) is refused rather than resumed (checkpoints.claim_workdir).
         config = ml_collections.ConfigDict(config.to_dict())
-        config.train.started_from = bundle.variables_digest(
-            bundle.read_variables(config.train.finetune_bundle))
+        config.train.started_from = store.variables_digest(
+            store.read_variables(config.train.finetune_bundle))
     learning_rate_schedule(config.train)                # so does a bad schedule
     check_roots(config)                                 # so does a data root that is not there
     check_orient(config, orient_shapes)
@@ -234,9 +236,9 @@ def _train(config, workdir, progress, init_variables, command, orient_shapes):
     start = 0
     if mngr.latest_step() is None:                # a new run: from trained weights?
         if config.train.get("init_bundle"):
-            start, init_variables = bundle.continued_bundle(config)
+            start, init_variables = warm_start.continued_bundle(config)
         elif config.train.get("finetune_bundle"):
-            init_variables = bundle.finetuned_bundle(config)
+            init_variables = warm_start.finetuned_bundle(config)
     if init_variables is not None:                # Adam's moments start afresh
         state.update(params=init_variables["params"],
                      batch_stats=init_variables.get("batch_stats", {}),

@@ -26,7 +26,8 @@ import typing
 import jax
 from tqdm import tqdm
 
-from sphere_jax import bundle, checks, compile_cache, model_card
+from sphere_jax import checks, compile_cache
+from sphere_jax.bundles import model_card, store
 from sphere_jax.training import adaptation
 
 POLL_S = 2.0
@@ -87,8 +88,8 @@ def _adapt_on(cores, bundle_path, data_root, steps, workdir, learning_rate, data
 
 
 def _read(bundle_path) -> _Trained:
-    config = bundle.read_config(bundle_path)
-    return _Trained(config.model, config, bundle.read_variables(bundle_path))
+    config = store.read_config(bundle_path)
+    return _Trained(config.model, config, store.read_variables(bundle_path))
 
 
 def _last_logged(workdir):

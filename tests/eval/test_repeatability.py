@@ -61,9 +61,9 @@ def test_an_adaptation_of_a_retrained_bundle_is_set_aside_not_resumed(tmp_path):
     stays to be resumed."""
     import json
     from types import SimpleNamespace
-    from sphere_jax import bundle
+    from sphere_jax.bundles import store
     trained = SimpleNamespace(variables={"params": {"w": np.arange(4, dtype=np.float32)}})
-    mine = bundle.variables_digest(trained.variables)
+    mine = store.variables_digest(trained.variables)
     folder = tmp_path / "adapted_compass"
     folder.mkdir()
     (folder / "config.json").write_text(json.dumps({"train": {"started_from": mine}}))

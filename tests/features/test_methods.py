@@ -3,7 +3,8 @@ ground-truth diagnostics describe a pair in one pose."""
 import numpy as np
 import pytest
 
-from sphere_jax import api, paths
+from sphere_jax import paths
+from sphere_jax.bundles import inference
 from sphere_jax.features import methods
 from tests.eval import _fixtures
 from tests.eval._fixtures import relative_difference as _relative
@@ -61,7 +62,7 @@ def test_lead_gt_gives_corresponding_patches_one_pose(moved_pair):
     assert rows.sum() > 40
     # The floor: the same scan described from another random draw of its patches.
     eye = np.broadcast_to(np.eye(3, dtype=np.float32), (len(f.keypoints), 3, 3))
-    lead = api.cached_bundle(BUNDLES["lead"])
+    lead = inference.cached_bundle(BUNDLES["lead"])
     redrawn, _ = lead.describe(f.points, f.keypoints, radius=0.30, frames=eye, seed=1,
                                on_invalid="mask")
     unturned, _ = lead.describe(g.points, g.keypoints, radius=0.30, frames=eye,

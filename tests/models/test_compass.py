@@ -4,7 +4,8 @@ shared scans, with an embedded synthetic fragment."""
 import numpy as np
 import pytest
 
-from sphere_jax import api, models, paths
+from sphere_jax import models, paths
+from sphere_jax.bundles import inference
 from sphere_jax.data import augment, patches
 from sphere_jax.data.readers import io
 from sphere_jax.spherical import so3
@@ -35,7 +36,7 @@ def _scans():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["compass", "sound"])
 def test_shipped_frames_rotate_with_the_scan(name, capsys):
-    bundle = api.load_bundle(paths.shipped_bundle(name, required=True))
+    bundle = inference.load_bundle(paths.shipped_bundle(name, required=True))
     for scan, pts, radius, (median_bound, mean_bound) in _scans():
         kp = patches.random_keypoints(pts, 100, np.random.default_rng(0))
         frames = bundle.orient(pts, kp, radius=radius)

@@ -9,7 +9,8 @@ import time
 import numpy as np
 import pytest
 
-from sphere_jax import bundle, paths
+from sphere_jax import paths
+from sphere_jax.bundles import store
 from sphere_jax.data import demo
 from sphere_jax.training import adaptation, side_by_side
 
@@ -39,8 +40,8 @@ def test_two_bundles_adapt_side_by_side_into_their_own_workdirs(tmp_path):
     adapted = side_by_side.adapt_side_by_side(jobs, ",".join(scans), steps=2, progress=False)
     assert adapted == [os.path.join(str(tmp_path / k), "bundle") for k in ("compass", "lead")]
     for kind, path in zip(("compass", "lead"), adapted):
-        assert bundle.read_config(path).model == kind
-        assert bundle.read_config(path).train.steps_done == 2
+        assert store.read_config(path).model == kind
+        assert store.read_config(path).train.steps_done == 2
         with open(os.path.join(path, "training_data.json")) as f:
             assert sum(json.load(f)["folders"].values()) == 2       # the two scans, no more
         assert "(2 scans)" in open(os.path.join(path, "MODEL_CARD.md")).read()

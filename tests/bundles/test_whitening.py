@@ -7,8 +7,10 @@ import pytest
 
 from configs import sound
 import sphere_jax
-from sphere_jax import api, model_card, models, training
-from sphere_jax.features import whitening, whitening_fit
+from sphere_jax import models, training
+from sphere_jax.bundles import inference, model_card
+from sphere_jax.features import whitening_fit
+from sphere_jax.bundles import whitening
 from sphere_jax.spherical import so3, transforms
 from tests import reference
 
@@ -133,11 +135,11 @@ def test_a_fitted_whitening_is_what_describe_applies_and_the_card_states(tmp_pat
     path = tmp_path / "bundle"
     cloud = np.random.default_rng(1).uniform(-1, 1, (3000, 3)).astype(np.float32)
     kp = np.arange(20)
-    raw = api.cached_bundle(path).describe(cloud, kp, radius=0.5)     # none fitted yet
+    raw = inference.cached_bundle(path).describe(cloud, kp, radius=0.5)     # none fitted yet
     used = whitening_fit.fit_bundle(path, scans=3, keypoints=250, command="whiten it",
                                     progress=False)
     assert used["default"] > 512 and set(used) == {"default"}        # SOUND: its own frames
-    bundle = api.cached_bundle(path)                 # the cache sees the new file
+    bundle = inference.cached_bundle(path)                 # the cache sees the new file
     w = bundle.whitenings["default"]
     assert np.allclose(bundle.describe(cloud, kp, radius=0.5), w.apply(raw), atol=1e-5)
     assert np.array_equal(bundle.describe(cloud, kp, radius=0.5, whiten=None), raw)

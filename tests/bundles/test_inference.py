@@ -10,7 +10,8 @@ import pytest
 
 from configs import lead, sound
 import sphere_jax
-from sphere_jax import api, models, parallel, paths, training
+from sphere_jax import models, parallel, paths, training
+from sphere_jax.bundles import inference
 from tests import reference
 
 
@@ -22,7 +23,7 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     variables = reference.init(model, x * 0.3)
     state = {"params": variables["params"], "batch_stats": variables["batch_stats"]}
     training.checkpoints.save_bundle(str(tmp_path), config, state)
-    bundle = api.load_bundle(tmp_path / "bundle")
+    bundle = inference.load_bundle(tmp_path / "bundle")
     cloud = np.random.default_rng(1).uniform(-1, 1, (3000, 3)).astype(np.float32)
     kp = np.arange(7)
     d1 = bundle.describe(cloud, kp, radius=0.5, chunk=3, workers=1)
@@ -34,17 +35,17 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     with pytest.raises(ValueError, match="at least 16 points; got 1 of 1"):
         bundle.orient(np.concatenate([cloud, [[9.0, 9.0, 9.0]]]), [3000], radius=0.5)
     with pytest.raises(sphere_jax.SphereJaxError, match="not a bundle"):
-        api.load_bundle(tmp_path)
+        inference.load_bundle(tmp_path)
     with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be a bundle folder or one"):
-        api.load_bundle(None)
+        inference.load_bundle(None)
     from sphere_jax import paths
     for name in paths.SHIPPED:                  # shipped bundles by name: the same folder
-        assert api.bundle_path(name) == paths.shipped_bundle(name, required=True)
-        kind = api.load_bundle(name).kind
+        assert inference.bundle_path(name) == paths.shipped_bundle(name, required=True)
+        kind = inference.load_bundle(name).kind
         assert kind == ("classify" if "pointnet" in name else name.replace("_shapes", ""))
     lead_config = lead.get_config("tiny")
     with pytest.raises(ValueError, match="of kind compass, sound to orient"):
-        api.Bundle(models.build(lead_config), {}, lead_config).orient(cloud, kp)
+        inference.Bundle(models.build(lead_config), {}, lead_config).orient(cloud, kp)
 
 
 def test_run_chunked_order_padding_and_workers():
@@ -139,12 +140,12 @@ def test_api_refuses_bad_arguments_before_any_work(sound_bundle, kwargs, message
 
 
 def test_several_clouds_are_a_list_of_pairs_with_one_result_each(sound_bundle):
-    bundle = api.load_bundle(sound_bundle)
+    bundle = inference.load_bundle(sound_bundle)
     for bad in (CLOUD, [], [CLOUD], [(CLOUD, np.arange(4), None)]):
         with pytest.raises(sphere_jax.SphereJaxError, match="clouds must be a non-empty list"):
             bundle.orient_clouds(bad)
     with pytest.raises(sphere_jax.SphereJaxError, match="frames must be a list of one"):
-        api.load_bundle("lead").describe_clouds([(CLOUD, np.arange(4))], frames=np.eye(3))
+        inference.load_bundle("lead").describe_clouds([(CLOUD, np.arange(4))], frames=np.eye(3))
     two = bundle.orient_clouds([(CLOUD, np.arange(4)), (CLOUD[::2], np.arange(3))])
     assert [f.shape for f in two] == [(4, 3, 3), (3, 3, 3)]
 
@@ -152,7 +153,7 @@ def test_several_clouds_are_a_list_of_pairs_with_one_result_each(sound_bundle):
 def test_describing_draws_supports_evenly_unless_asked_to_draw_as_training(sound_bundle):
     """The default draw is 'even'; draw='random' (what the whitening is fitted on) gives the
     supports training draws, and another word is refused by name."""
-    bundle = api.load_bundle(sound_bundle)
+    bundle = inference.load_bundle(sound_bundle)
     kp = np.arange(6)
     even = bundle.describe_clouds([(CLOUD, kp)], radius=0.3)[0]
     np.testing.assert_array_equal(even, bundle.describe_clouds([(CLOUD, kp)], radius=0.3,
@@ -164,7 +165,7 @@ def test_describing_draws_supports_evenly_unless_asked_to_draw_as_training(sound
 
 
 def test_too_small_supports_are_reported_never_described(sound_bundle):
-    bundle = api.load_bundle(sound_bundle)
+    bundle = inference.load_bundle(sound_bundle)
     lonely = np.concatenate([CLOUD, [[5, 5, 5], [5.01, 5, 5]]]).astype(np.float32)
     kp = np.array([0, 3000, 1])                 # 3000 has one neighbour: 1024 copies of it
     with pytest.raises(sphere_jax.SphereJaxError, match=r"1 of 3 with fewer \(the first, "
@@ -183,7 +184,7 @@ def test_frames_must_be_rotations_and_only_where_used(sound_bundle):
     config = lead_config.get_config("tiny")
     model = models.build(config)
     x = np.zeros((1, config.data.n_points, 3), np.float32)
-    lead = api.Bundle(model, reference.init(model, x), config)
+    lead = inference.Bundle(model, reference.init(model, x), config)
     for frames, message in [(np.zeros((4, 3, 3)), "not.*det = 0"),
                             (np.full((4, 3, 3), np.nan), "non-finite"),
                             (np.eye(3), r"rotations \[4, 3, 3\]")]:
@@ -191,7 +192,7 @@ def test_frames_must_be_rotations_and_only_where_used(sound_bundle):
                            frames.ndim == 2 else message):
             lead.describe(CLOUD, np.arange(4), radius=0.3, frames=frames)
     with pytest.raises(sphere_jax.SphereJaxError, match="frames must be None for a sound"):
-        api.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=np.eye(3)[None])
+        inference.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=np.eye(3)[None])
 
 
 def _untrained(config_module, **data):
@@ -199,7 +200,7 @@ def _untrained(config_module, **data):
     config.data.update(data)
     model = models.build(config)
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
-    return api.Bundle(model, reference.init(model, x * 0.3), config)
+    return inference.Bundle(model, reference.init(model, x * 0.3), config)
 
 
 def test_an_orienting_bundle_as_frames_gives_the_values_of_its_frames(sound_bundle):
@@ -224,13 +225,13 @@ def test_an_orienting_bundle_as_frames_gives_the_values_of_its_frames(sound_bund
                                                         "whose patches.*32 points"):
         lead_bundle.describe(CLOUD, np.arange(4), radius=0.3, frames=wide)
     with pytest.raises(sphere_jax.SphereJaxError, match="frames must be None for a sound"):
-        api.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=compass)
+        inference.load_bundle(sound_bundle).describe(CLOUD, np.arange(4), frames=compass)
     with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be of kind"):
         lead_bundle.describe(CLOUD, np.arange(4), radius=0.3, frames=lead_bundle)
 
 
 def test_coordinate_keypoints_are_queried_not_added(sound_bundle):
-    bundle = api.load_bundle(sound_bundle)
+    bundle = inference.load_bundle(sound_bundle)
     far = np.array([[3.0, 3.0, 3.0], [3.01, 3.0, 3.0]], np.float32)
     cloud = np.concatenate([CLOUD, far[:1] + [0.0, 0.05, 0.0]] * 1).astype(np.float32)
     # Neither coordinate is a support point of the other: each sees the one cloud point only.
@@ -253,10 +254,10 @@ def test_corrupt_or_mismatched_bundles_name_the_bundle(sound_bundle, tmp_path):
     mismatch = r"shape .*\(config and weights do not match\)"
     with pytest.raises(sphere_jax.SphereJaxError, match=rf"bundle {bad}: parameter .* has "
                                                         + mismatch):
-        api.load_bundle(bad)
+        inference.load_bundle(bad)
     config.write_text(text[:50])
     with pytest.raises(sphere_jax.SphereJaxError, match="config.json is unreadable"):
-        api.load_bundle(bad)
+        inference.load_bundle(bad)
 
 def test_truncated_weights_name_the_bundle_and_leave_no_stray_reports(tmp_path, caplog,
                                                                       unraisable_reports):
@@ -271,7 +272,7 @@ def test_truncated_weights_name_the_bundle_and_leave_no_stray_reports(tmp_path, 
     for _ in range(3):        # the reads left behind differ from one try to the next
         with pytest.raises(sphere_jax.SphereJaxError, match=rf"bundle {bad}: the weights in "
                                                             r"variables/ cannot be restored"):
-            api.load_bundle(bad)
+            inference.load_bundle(bad)
     gc.collect()
     assert unraisable_reports == []         # orbax's abandoned reads were collected, quietly
     assert [r.getMessage()[:80] for r in caplog.records if r.name == "asyncio"] == []
@@ -281,7 +282,7 @@ def test_support_memory_does_not_grow_with_the_keypoints(sound_bundle):
     """Peak Python allocations (numpy's buffers) of orienting K keypoints: chunks stream, so
     8× the keypoints may not cost much more than the output itself."""
     import tracemalloc
-    bundle = api.load_bundle(sound_bundle)
+    bundle = inference.load_bundle(sound_bundle)
     dense = np.random.default_rng(2).uniform(-1, 1, (60_000, 3)).astype(np.float32)
     bundle.orient(dense, np.arange(8), radius=0.3, chunk=64, workers=1)      # compile
     peaks = {}
@@ -331,13 +332,14 @@ def test_open3d_clouds_in_and_features_out_for_open3d_ransac():
 
 SHARDED_CHILD = """
 import sys, numpy as np, jax
-from sphere_jax import api, parallel
+from sphere_jax import parallel
+from sphere_jax.bundles import inference
 from sphere_jax.data import demo, patches
 assert parallel.chunk_sharding().mesh.size == jax.local_device_count() == 2
 (src, _), _ = demo.fragment_pair()
 kp = patches.random_keypoints(src, 150, np.random.default_rng(0))
-np.savez(sys.argv[1], compass=api.load_bundle('compass').orient(src, kp, chunk=25),
-         lead=api.load_bundle('lead').describe(src, kp, chunk=25))
+np.savez(sys.argv[1], compass=inference.load_bundle('compass').orient(src, kp, chunk=25),
+         lead=inference.load_bundle('lead').describe(src, kp, chunk=25))
 """
 
 
@@ -357,7 +359,7 @@ def test_chunks_split_over_two_host_devices_give_the_same_results(tmp_path):
     assert parallel.chunk_sharding() is None                       # this process: one device
     (src, _), _ = demo.fragment_pair()
     kp = patches.random_keypoints(src, 150, np.random.default_rng(0))
-    np.testing.assert_allclose(two["compass"], api.load_bundle("compass").orient(src, kp),
+    np.testing.assert_allclose(two["compass"], inference.load_bundle("compass").orient(src, kp),
                                atol=1e-5)
-    np.testing.assert_allclose(two["lead"], api.load_bundle("lead").describe(src, kp),
+    np.testing.assert_allclose(two["lead"], inference.load_bundle("lead").describe(src, kp),
                                atol=1e-5)

@@ -1,9 +1,9 @@
 """Inference from Python: load a trained bundle, then orient or describe keypoints of a cloud.
 
-    from sphere_jax import api
-    compass = api.load_bundle("compass")          # the shipped one; or a bundle folder
+    from sphere_jax.bundles import inference
+    compass = inference.load_bundle("compass")          # the shipped one; or a bundle folder
     frames = compass.orient(points, keypoints, radius=0.3)        # [K, 3, 3], columns x̂ ŷ ẑ
-    sound = api.load_bundle("runs/sound_mid/bundle")
+    sound = inference.load_bundle("runs/sound_mid/bundle")
     desc = sound.describe(points, keypoints, radius=0.3)          # [K, 512]
 
 Patches are drawn with a fixed seed, jitted and vmapped over chunks of keypoints, so memory
@@ -20,16 +20,15 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from sphere_jax import bundle as bundle_files
-from sphere_jax import checks
-from sphere_jax import models, paths
+from sphere_jax import checks, models, paths
+from sphere_jax.bundles import store
+from sphere_jax.bundles import whitening as whitening_lib
 from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
 from sphere_jax.data.supports import (DRAW, MIN_SUPPORT, StreamChain, SupportStream,
                                       extract_unit_patches)
-from sphere_jax.features import whitening as whitening_lib
-from sphere_jax.parallel import DEFAULT_CHUNK, in_slices, run_chunked, stream_chunked
 from sphere_jax.models import flare
+from sphere_jax.parallel import DEFAULT_CHUNK, in_slices, run_chunked, stream_chunked
 
 FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
 
@@ -224,7 +223,7 @@ class Bundle:
         return self._framed[key][1]
 
     def _whitening(self, whiten, framed: bool):
-        """The :class:`~sphere_jax.features.whitening.Whitening` ``whiten`` names, or None."""
+        """The :class:`~sphere_jax.bundles.whitening.Whitening` ``whiten`` names, or None."""
         if whiten is None or whiten is False:
             return None
         checks.choice(whiten, "whiten", ("auto",) + whitening_lib.SOURCES)
@@ -282,18 +281,18 @@ def load_bundle(path) -> Bundle:
     """Load a bundle folder written at the end of training (:mod:`sphere_jax.bundle`), or a
     shipped one by model kind (:func:`bundle_path`)."""
     path = bundle_path(path)
-    config = bundle_files.read_config(path)
+    config = store.read_config(path)
     try:
         model = models.build(config)
     except Exception as e:                    # an unknown kind, a field the module lacks
         raise checks.BundleError(path, f"its config builds no model "
-                                       f"({bundle_files.first_line(e)})") from None
-    variables = bundle_files.read_variables(path)
+                                       f"({store.first_line(e)})") from None
+    variables = store.read_variables(path)
     key = jax.random.PRNGKey(0)
     x = jax.ShapeDtypeStruct((1, config.data.n_points, 3), jnp.float32)
     expected = jax.eval_shape(functools.partial(model.init, train=False),
                               {"params": key, "dropout": key}, x)
-    bundle_files.check_fits(path, variables, {k: expected.get(k, {}) for k in variables})
+    store.check_fits(path, variables, {k: expected.get(k, {}) for k in variables})
     return Bundle(model, variables, config, whitening_lib.load(path))
 
 
@@ -301,7 +300,7 @@ def cached_bundle(path) -> Bundle:
     """:func:`load_bundle`, once per bundle folder and process (the models compile once);
     a folder rewritten since (a new ``config.json``) is loaded again."""
     path = os.path.abspath(bundle_path(path))
-    return _cached_bundle(path, bundle_files.stamp(path))
+    return _cached_bundle(path, store.stamp(path))
 
 
 @functools.lru_cache(maxsize=16)
@@ -313,7 +312,7 @@ def shape_orienter(path):
     """:class:`ShapeOrienter` of the whole-shape Compass bundle at ``path``: what
     :func:`sphere_jax.training.train_and_evaluate` takes as ``orient_shapes`` for a config
     with ``orient_bundle``."""
-    return ShapeOrienter(cached_bundle(path), bundle_files.fingerprint(bundle_path(path)))
+    return ShapeOrienter(cached_bundle(path), store.fingerprint(bundle_path(path)))
 
 
 @dataclasses.dataclass(frozen=True)

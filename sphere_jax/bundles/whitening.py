@@ -27,10 +27,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from sphere_jax import bundle, checks, files
+from sphere_jax import checks, files
+from sphere_jax.bundles import store
 from sphere_jax.spherical import so3, transforms
 
-FILE = bundle.WHITENING
+FILE = store.WHITENING
 STATEMENT = "whitening.json"
 SOURCES = ("default", "compass")
 EPS = 1e-5              # of the largest variance; 1e-6 .. 1e-4 gave LEAD 0.249 .. 0.262 IR
@@ -100,7 +101,7 @@ def rotation_averaged(w: Whitening, bandwidth: int, eps=EPS) -> Whitening:
     in Haar-weighted coordinates (each grid value times √(Haar weight)), where T_Q is
     orthogonal, so the averaged covariance commutes with every turn and the whitening is
     equivariant: turning all maps by one rotation leaves their whitened distances unchanged
-    (``tests/features/test_whitening.py``)."""
+    (``tests/bundles/test_whitening.py``)."""
     side = 2 * bandwidth
     if w.weights is not None or len(w.mean) != side ** 3:
         raise checks.InputError("w", f"a plain whitening of [{side ** 3}] SO(3) maps at B = "

@@ -18,8 +18,9 @@ import json
 import os
 import re
 
-from sphere_jax import bundle, files, paths
-from sphere_jax.features import whitening
+from sphere_jax import files, paths
+from sphere_jax.bundles import store
+from sphere_jax.bundles import whitening
 
 CARD = "MODEL_CARD.md"
 CURVE = "validation_curve.png"
@@ -97,7 +98,7 @@ def add_evaluation(bundle_dir, name, table_markdown, command, date=None):
                        if _workdir(v.get("command")) != workdir}
     evaluations[name] = {"command": command, "table": table_markdown,
                          "date": date or datetime.date.today().isoformat()}
-    bundle.write_json(path, json.dumps(evaluations, indent=1, sort_keys=True))
+    store.write_json(path, json.dumps(evaluations, indent=1, sort_keys=True))
     render(bundle_dir)
 
 
@@ -116,15 +117,16 @@ def write(bundle_dir, metrics_path, command=None):
 def render(bundle_dir):
     """Write ``MODEL_CARD.md`` (and the curve's PNG) from the bundle's files."""
     bundle_dir = str(bundle_dir)
-    config = bundle.read_config(bundle_dir)
-    data = bundle.read_training_data(bundle_dir)
+    config = store.read_config(bundle_dir)
+    data = store.read_training_data(bundle_dir)
     lines = read_metrics(os.path.join(bundle_dir, METRICS))
     command_file = os.path.join(bundle_dir, "command.txt")
     command = open(command_file).read().strip() if os.path.isfile(command_file) else None
     train = config.train
-    done = bundle.steps_done(config)
+    done = store.steps_done(config)
     out = [f"# {config.model} ({config.get('size', '')})", ""]
-    out += ["Generated from this bundle's files by `sphere_jax.model_card`; do not edit.", ""]
+    out += ["Generated from this bundle's files by `sphere_jax.bundles.model_card`; do not "
+            "edit.", ""]
     out += ["## Training", ""]
     if command:
         out += ["```bash", command, "```", ""]
@@ -215,15 +217,15 @@ def weights_index(root, shipped) -> str:
            "|---|---|---|---|---|---|---|"]
     for kind, folder in sorted(shipped.items()):
         path = os.path.join(root, folder, "bundle")
-        if not bundle.is_bundle(path):
+        if not store.is_bundle(path):
             continue
-        config = bundle.read_config(path)
-        data = bundle.read_training_data(path)
+        config = store.read_config(path)
+        data = store.read_training_data(path)
         kwargs = config.get("model_kwargs", {})
         kwargs = kwargs.to_dict() if hasattr(kwargs, "to_dict") else kwargs
         net = ", ".join(f"{k}={tuple(v) if isinstance(v, list) else v}" for k, v in
                         kwargs.items() if "decoder" not in k)
-        done = bundle.steps_done(config)
+        done = store.steps_done(config)
         command_file = os.path.join(path, "command.txt")
         command = open(command_file).read().strip() if os.path.isfile(command_file) else ""
         recipe = f"`{paths.RECIPES[kind]}:mid`" if kind in paths.RECIPES else "–"

@@ -11,7 +11,8 @@ import pytest
 
 from configs import eval_registration, lead
 from experiments import publish, standing
-from sphere_jax import bundle, model_card, training
+from sphere_jax import training
+from sphere_jax.bundles import model_card, store
 from sphere_jax.eval import report, tasks
 
 README = "# x\n\nabove\n\n<!-- headline:begin -->\nold\n<!-- headline:end -->\n\nbelow\n"
@@ -63,7 +64,7 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
 
 
 def _compass_bundle(path, steps):
-    bundle.save(path, ml_collections.ConfigDict({"model": "compass", "data": {"root": "x"},
+    store.save(path, ml_collections.ConfigDict({"model": "compass", "data": {"root": "x"},
                                                  "train": {"steps": steps, "batch_size": 1,
                                                            "learning_rate": 1e-3}}),
                 {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
@@ -114,7 +115,7 @@ def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
     none was recorded) stays out of the retrained bundle's card."""
     path = _compass_bundle(tmp_path / "bundle", 5)
     runs = [_lrf_run(tmp_path, name, name, {"path": str(path), **recorded}) for name, recorded in (
-        ("now", {"fingerprint": bundle.fingerprint(path), "steps_done": 5}),
+        ("now", {"fingerprint": store.fingerprint(path), "steps_done": 5}),
         ("old", {"fingerprint": "0" * 16, "steps_done": 5}), ("older", {"steps_done": 3}))]
     publish.publish(runs, results=str(tmp_path / "results.md"))
     card = (path / model_card.CARD).read_text()
@@ -156,7 +157,7 @@ def test_a_registration_section_shows_its_pair_votes_below_its_tables(tmp_path):
 def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tmp_path):
     shipped = _compass_bundle(tmp_path / "shipped", 100)
     adapted = tmp_path / "adapted"
-    bundle.save(adapted, ml_collections.ConfigDict({
+    store.save(adapted, ml_collections.ConfigDict({
         "model": "compass", "data": {"root": "/scans/mine", "voxel": 0.001, "radius": 0.015},
         "train": {"steps": 1_000_000, "steps_done": 240, "time_budget_s": 600.0,
                   "best_step": 200, "batch_size": 2, "learning_rate": 1e-3}}),
@@ -183,7 +184,7 @@ def test_an_adaptation_title_names_the_budgets(tmp_path):
     saved = {}
     for kind, budget_s in (("compass", 600.0), ("lead", 300.0), ("sound", 0.0)):
         saved[kind] = tmp_path / kind
-        bundle.save(saved[kind], ml_collections.ConfigDict({
+        store.save(saved[kind], ml_collections.ConfigDict({
             "model": kind, "data": {"root": "x"},
             "train": {"steps": 500, "time_budget_s": budget_s, "batch_size": 2}}),
             {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
@@ -196,7 +197,7 @@ def test_an_adaptation_title_names_the_budgets(tmp_path):
 
 def test_a_minutes_budget_card_has_no_step_total_and_names_the_constant_rate(tmp_path):
     path = tmp_path / "adapted"
-    bundle.save(path, ml_collections.ConfigDict({
+    store.save(path, ml_collections.ConfigDict({
         "model": "compass", "data": {"root": "x"},
         "train": {"steps": 1_000_000, "steps_done": 40, "time_budget_s": 300.0,
                   "budget_ends": True, "schedule": "warmup_cosine", "warmup_steps": 25,
@@ -307,7 +308,7 @@ def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_p
         with open(f"{run}/lrf_results.csv", "w") as f:
             f.write(lrf + "\n" + "".join(f"{m},mean,{v}\n" for m, v in means.items()))
     adapted = tmp_path / "run_after" / "adapted_compass" / "bundle"
-    bundle.save(adapted, ml_collections.ConfigDict({
+    store.save(adapted, ml_collections.ConfigDict({
         "model": "compass", "data": {"root": "/data/bunny", "voxel": 0.001, "radius": 0.015},
         "train": {"steps": 50, "steps_done": 50, "best_step": 50, "batch_size": 2,
                   "learning_rate": 1e-4}}), {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
@@ -400,7 +401,7 @@ def test_the_weights_index_names_each_bundles_data_root_and_scan_count(tmp_path)
     for folder, root, data in (
             ("c", "embedded:1,shared/x", {"kind": "scans", "folders": {"a": 12, "b": 1}}),
             ("s", "/shapes", {"kind": "shapes", "folders": {"/shapes": 1}})):
-        bundle.save(tmp_path / folder / "bundle", ml_collections.ConfigDict({
+        store.save(tmp_path / folder / "bundle", ml_collections.ConfigDict({
             "model": "compass", "data": {"root": root},
             "train": {"steps": 3, "batch_size": 2, "learning_rate": 1e-3}}),
             {"params": {"w": jnp.ones(1)}, "batch_stats": {}}, training_data=data)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from configs import lead
-from sphere_jax import api, bundle, models, paths
+from sphere_jax import models, paths
+from sphere_jax.bundles import inference, store
 from tests import reference
 
 
@@ -17,28 +18,28 @@ def test_save_load_round_trip_and_training_data(tmp_path):
     x = np.random.default_rng(0).normal(size=(2, config.data.n_points, 3)).astype(np.float32)
     variables = reference.init(model, x)
     statement = {"kind": "scans", "folders": {"/data/a": 3}, "keypoints": {"train": 9}}
-    path = bundle.save(tmp_path / "b", config, dict(variables), statement)
-    assert bundle.is_bundle(path) and bundle.read_config(path).model == "lead"
-    assert bundle.read_training_data(path) == statement
-    back = bundle.read_variables(path)
+    path = store.save(tmp_path / "b", config, dict(variables), statement)
+    assert store.is_bundle(path) and store.read_config(path).model == "lead"
+    assert store.read_training_data(path) == statement
+    back = store.read_variables(path)
     flat = lambda t: jax.tree_util.tree_leaves(t)
     assert all(np.array_equal(a, b) for a, b in zip(flat(back), flat(dict(variables))))
-    loaded = api.load_bundle(path)
+    loaded = inference.load_bundle(path)
     assert loaded.kind == "lead" and loaded.spec is models.spec("lead")
     with pytest.raises(ValueError, match="not a bundle"):
-        bundle.read_config(tmp_path)
+        store.read_config(tmp_path)
     # A workdir holds the run's config.json beside its bundle: the error points at the bundle.
     work = tmp_path / "w"
-    bundle.save(work / "bundle", config, dict(variables), statement)
+    store.save(work / "bundle", config, dict(variables), statement)
     (work / "config.json").write_text(open(os.path.join(path, "config.json")).read())
     with pytest.raises(ValueError, match=f"a training or adaptation workdir. its bundle is "
                                          f"{work}/bundle"):
-        api.load_bundle(work)
+        inference.load_bundle(work)
 
 
 def test_shipped_bundles_state_what_they_were_trained_on():
     for name in paths.SHIPPED:
-        data = bundle.read_training_data(paths.shipped_bundle(name, required=True))
+        data = store.read_training_data(paths.shipped_bundle(name, required=True))
         assert data["folders"], name
 
 
@@ -68,10 +69,10 @@ def test_a_bundle_write_that_fails_leaves_the_previous_bundle(tmp_path, monkeypa
     import numpy as np
     import orbax.checkpoint as ocp
 
-    from sphere_jax import bundle
+    from sphere_jax.bundles import store
     config = ml_collections.ConfigDict({"model": "lead", "data": {"root": "a"}})
     path = tmp_path / "bundle"
-    bundle.save(path, config, {"params": {"w": jnp.ones(3)}, "batch_stats": {}})
+    store.save(path, config, {"params": {"w": jnp.ones(3)}, "batch_stats": {}})
     save = ocp.StandardCheckpointer.save
 
     def full_disk(self, directory, *args, **kwargs):
@@ -81,15 +82,15 @@ def test_a_bundle_write_that_fails_leaves_the_previous_bundle(tmp_path, monkeypa
     monkeypatch.setattr(ocp.StandardCheckpointer, "save", full_disk)
     config.data.root = "b"
     with pytest.raises(OSError, match="No space left"):
-        bundle.save(path, config, {"params": {"w": jnp.zeros(3)}, "batch_stats": {}})
+        store.save(path, config, {"params": {"w": jnp.zeros(3)}, "batch_stats": {}})
     monkeypatch.undo()
-    assert bundle.read_config(path).data.root == "a"
-    np.testing.assert_array_equal(bundle.read_variables(path)["params"]["w"], np.ones(3))
+    assert store.read_config(path).data.root == "a"
+    np.testing.assert_array_equal(store.read_variables(path)["params"]["w"], np.ones(3))
     assert sorted(os.listdir(tmp_path)) == ["bundle"]
     config.data.root = "c"                              # and a later write replaces it whole
-    bundle.save(path, config, {"params": {"w": jnp.zeros(3)}, "batch_stats": {}})
-    np.testing.assert_array_equal(bundle.read_variables(path)["params"]["w"], np.zeros(3))
-    assert sorted(os.listdir(tmp_path)) == ["bundle"] and bundle.read_config(path).data.root == "c"
+    store.save(path, config, {"params": {"w": jnp.zeros(3)}, "batch_stats": {}})
+    np.testing.assert_array_equal(store.read_variables(path)["params"]["w"], np.zeros(3))
+    assert sorted(os.listdir(tmp_path)) == ["bundle"] and store.read_config(path).data.root == "c"
 
 
 def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path, monkeypatch):
