@@ -4,7 +4,7 @@ from __future__ import annotations
 import ml_collections
 
 from sphere_jax import checks
-from sphere_jax.data import pipeline
+from sphere_jax.data import shape_source
 
 # 'mid' sits between: the seed's ablation (Table 4.5) kept 0.922 of the best LEAD recall with
 # three SO(3) layers at input bandwidths 12, 8, 6 (its configuration F) at 0.64 of the time
@@ -25,7 +25,7 @@ B24_INFER_CHUNK = 64
 MID_ROOT = "embedded:1,embedded:2,embedded:3,embedded:4"
 # Of the clean real scans of ../shared/data only open3d's RGB-D frames (one fused fragment)
 # reached a 2 cm voxel and 30 cm supports (open3d's Feature fragments, of no documented scene,
-# are held out: data/evaluation_scenes.py). As a fifth of Compass's batches it raised the redkitchen
+# are held out: data/held_out.py). As a fifth of Compass's batches it raised the redkitchen
 # repeatability by 11 % at B = 8 and B = 12 (docs/training.md), so the shipped Compass trains
 # on it; the descriptors have not been trained with it.
 REAL_SCAN = "shared/open3d_testdata/RGBD"
@@ -36,10 +36,10 @@ MODELNET_TRAIN = "shared/modelnet40/pointnet_1024"
 
 def shape_splits(c):
     """The splits of every shape task (whole-shape Compass and the classifiers alike,
-    ``pipeline.ShapeSource``): each k-th shape of a class tests where the set has no test
+    ``shape_source.ShapeSource``): each k-th shape of a class tests where the set has no test
     split, each k-th of the rest validates."""
-    c.data.holdout_every = pipeline.HOLDOUT_EVERY
-    c.data.val_every = pipeline.HOLDOUT_EVERY
+    c.data.holdout_every = shape_source.HOLDOUT_EVERY
+    c.data.val_every = shape_source.HOLDOUT_EVERY
     return c
 
 
@@ -58,7 +58,7 @@ def base(size: str) -> ml_collections.ConfigDict:
     c.data = ml_collections.ConfigDict(dict(
         root="embedded:1",        # comma-separated folders, scan files, 'embedded:N' (the
                                   # synthetic training rooms of seed N) or 'shared/<rel>'
-                                  # (pipeline.resolve_root)
+                                  # (scan_roots.resolve_root)
         root_weights="",          # share of each root entry in a batch; '': by keypoint count
         voxel=0.02,               # fragments voxel-downsampled at 2 cm (seed 4.3)
         keypoint_leaf=0.10,       # one keypoint every 10 cm (seed 3.1.5)
@@ -73,7 +73,7 @@ def base(size: str) -> ml_collections.ConfigDict:
                                   # scan of the scene, by its ground truth: data/poses.py)
         copy_jitter=0.0,          # Gaussian noise on the copy (std, units of the radius)
         allow_evaluation_scenes=False,   # True: an evaluation-scene experiment, recorded
-                                         # (sphere_jax/data/evaluation_scenes.py)
+                                         # (sphere_jax/data/held_out.py)
     ))
     # Patches per jitted inference call (inference.Bundle.orient/describe); memory grows with it and
     # with the chunks run at a time (parallel.run_chunked).

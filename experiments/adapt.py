@@ -24,7 +24,7 @@ import os
 from experiments import cli
 from sphere_jax import align, checks, workdirs
 from sphere_jax.bundles import inference
-from sphere_jax.data import pipeline
+from sphere_jax.data import scan_roots
 from sphere_jax.data.readers import io
 from sphere_jax.features import whitening_fit
 from sphere_jax.training import adaptation, side_by_side
@@ -36,7 +36,7 @@ def auto_scale(roots, voxel="auto", radius="auto"):
     """``(voxel, radius)`` for ``roots``' scans: each given, or chosen from the scans as
     ``register`` chooses it (:func:`sphere_jax.align.auto_scale`)."""
     if "auto" in (voxel, radius):
-        scans = pipeline.scan_paths(roots)
+        scans = scan_roots.scan_paths(roots)
         if not scans:
             raise checks.MissingError(f"--data={roots!r}: no scans found")
         clouds = [io.read_points(p).points for p in scans[:SCALE_SCANS]]

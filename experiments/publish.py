@@ -27,7 +27,7 @@ import re
 
 from experiments import cli
 from sphere_jax.data.readers import io
-from sphere_jax.eval import report, repeatability
+from sphere_jax.eval import repeatability, report
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(REPO, "docs", "results.md")

@@ -12,7 +12,7 @@ import pytest
 from sphere_jax import checks
 from sphere_jax.bundles import inference
 from configs import lead_pn
-from sphere_jax.data import evaluation_scenes, pipeline
+from sphere_jax.data import held_out, patch_source, scan_roots
 from sphere_jax.training import inputs
 from sphere_jax.data.generators import synthetic
 from tests.data.generators.test_synthetic import SMALL
@@ -30,9 +30,9 @@ def scans(tmp_path_factory):
 
 
 def test_pack_trains_the_same_keypoints_and_batches(scans, tmp_path):
-    folders = pipeline.pack_scans(scans, 0.04, str(tmp_path / "pack"))
-    make = lambda paths_: pipeline.PatchSource(paths_, 0.04, 0.5, 0.5, 32, 20, seed=1)
-    a, b = make(pipeline.scan_paths(scans)), make(pipeline.scan_paths(",".join(folders)))
+    folders = scan_roots.pack_scans(scans, 0.04, str(tmp_path / "pack"))
+    make = lambda paths_: patch_source.PatchSource(paths_, 0.04, 0.5, 0.5, 32, 20, seed=1)
+    a, b = make(scan_roots.scan_paths(scans)), make(scan_roots.scan_paths(",".join(folders)))
     assert len(a) == len(b) > 0
     np.testing.assert_array_equal(a.batch(2, 4)["patches"], b.batch(2, 4)["patches"])
     folder_a, = {k.split(" ")[0] for k in a.statement()["folders"]}
@@ -40,24 +40,24 @@ def test_pack_trains_the_same_keypoints_and_batches(scans, tmp_path):
 
 
 def test_a_pack_stands_in_for_its_entries(scans, tmp_path):
-    folders = list(pipeline.pack_scans(scans, 0.04, str(tmp_path / "pack")))
-    assert pipeline.packed_folders(scans, str(tmp_path / "pack")) == folders
-    assert pipeline.scan_groups(scans, pack=str(tmp_path / "pack")) == \
-        [pipeline.find_scans(f) for f in folders]
+    folders = list(scan_roots.pack_scans(scans, 0.04, str(tmp_path / "pack")))
+    assert scan_roots.packed_folders(scans, str(tmp_path / "pack")) == folders
+    assert scan_roots.scan_groups(scans, pack=str(tmp_path / "pack")) == \
+        [scan_roots.find_scans(f) for f in folders]
     with pytest.raises(checks.ConfigError, match="embedded:7"):
-        pipeline.packed_folders(f"{scans},embedded:7", str(tmp_path / "pack"))
+        scan_roots.packed_folders(f"{scans},embedded:7", str(tmp_path / "pack"))
     with pytest.raises(checks.ConfigError, match="must be a folder made by"):
-        pipeline.packed_folders(scans, str(tmp_path / "nowhere"))
-    assert [pipeline.scan_folder_label(p) for f in folders for p in pipeline.find_scans(f)] \
-        == [pipeline.scan_folder_label(p) + " (packed at 0.04 m)"
-            for p in pipeline.scan_paths(scans)]
+        scan_roots.packed_folders(scans, str(tmp_path / "nowhere"))
+    assert [scan_roots.scan_folder_label(p) for f in folders for p in scan_roots.find_scans(f)] \
+        == [scan_roots.scan_folder_label(p) + " (packed at 0.04 m)"
+            for p in scan_roots.scan_paths(scans)]
 
 
 def test_a_pack_of_an_evaluation_scene_is_refused(scans, tmp_path):
     """The rule holds where only the pack is: its scans name their origin (here the bunny's,
     under an innocent data.root)."""
-    folder, = pipeline.pack_scans(scans, 0.04, str(tmp_path / "pack"))
-    index_path = os.path.join(folder, pipeline.PACK_INDEX)
+    folder, = scan_roots.pack_scans(scans, 0.04, str(tmp_path / "pack"))
+    index_path = os.path.join(folder, scan_roots.PACK_INDEX)
     with open(index_path) as f:
         index = json.load(f)
     index["scans"] = {k: "shared/stanford/bunny/data" for k in index["scans"]}
@@ -65,13 +65,13 @@ def test_a_pack_of_an_evaluation_scene_is_refused(scans, tmp_path):
         json.dump(index, f)
     config = lead_pn.get_config("tiny")
     config.data.root, config.train.pack = scans, str(tmp_path / "pack")
-    with pytest.raises(evaluation_scenes.EvaluationSceneError, match="bunny"):
+    with pytest.raises(held_out.EvaluationSceneError, match="bunny"):
         inputs.check_roots(config)
 
 
 def test_gpu_script_brings_back_a_bundle_stopped_by_its_budget(scans, tmp_path):
     carry = tmp_path / "carry"
-    pipeline.pack_scans(scans, 0.04, str(carry / "pack"))
+    scan_roots.pack_scans(scans, 0.04, str(carry / "pack"))
     (carry / "root.txt").write_text(scans + "\n")
     out = tmp_path / "out"
     out.mkdir()

@@ -302,13 +302,13 @@ def test_adaptation_never_reads_the_test_scans_ground_truth(small_root, tmp_path
 
 
 def _random_batch(config, n, seed=0):
-    from sphere_jax.data import pipeline
+    from sphere_jax.data import augment
     rng = np.random.default_rng(seed)
     p = rng.normal(size=(n, config.data.n_points, 3))
     p = (p / np.linalg.norm(p, axis=-1).max(1)[:, None, None]).astype(np.float32)
     batch = {"patches": p}
     if models.spec(config.model).copies:
-        batch.update(pipeline.rotated_copies(p, rng))
+        batch.update(augment.rotated_copies(p, rng))
     return batch
 
 

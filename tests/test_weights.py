@@ -1,5 +1,5 @@
 """The bundles in ``sphere_jax/weights``: none was trained on an evaluation scene (the rule of
-:mod:`sphere_jax.data.evaluation_scenes`), and each shipped one is what its config's one
+:mod:`sphere_jax.data.held_out`), and each shipped one is what its config's one
 command produces."""
 import glob
 import importlib
@@ -10,7 +10,7 @@ import pytest
 
 from sphere_jax import paths
 from sphere_jax.bundles import store
-from sphere_jax.data import evaluation_scenes, pipeline
+from sphere_jax.data import held_out, scan_roots
 
 ROOT = paths.weights_root()
 BUNDLES = sorted(os.path.dirname(p) for p in
@@ -30,8 +30,8 @@ def test_every_shipped_kind_is_checked_here():
 @pytest.mark.parametrize("path", BUNDLES, ids=_name)
 def test_no_bundle_saw_an_evaluation_scene(path):
     stated = store.read_training_data(path)
-    configured = pipeline.root_entries(store.read_config(path).data.get("root", ""))
-    seen = evaluation_scenes.scenes_of(list(stated["folders"]) + configured)
+    configured = scan_roots.root_entries(store.read_config(path).data.get("root", ""))
+    seen = held_out.scenes_of(list(stated["folders"]) + configured)
     seen += stated.get("evaluation_scenes", [])
     assert not seen, f"{_name(path)} was trained on evaluation scans: {seen}"
 

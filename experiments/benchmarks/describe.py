@@ -79,12 +79,12 @@ def _pair():
     pair without the real scans); fragment ``i`` is described, ``j`` registered onto it."""
     import glob
     from sphere_jax import paths
-    from sphere_jax.data import pipeline
+    from sphere_jax.data import scan_roots
     from sphere_jax.data.readers import threedmatch
     kitchen = paths.real_data("3dmatch", "7-scenes-redkitchen")
     if kitchen and os.path.isdir(kitchen):
         return threedmatch.load_fragment_scene(kitchen), 0, 5
-    first = sorted(glob.glob(os.path.join(pipeline.default_scan_root(), "*",
+    first = sorted(glob.glob(os.path.join(scan_roots.default_scan_root(), "*",
                                           "cloud_bin_0.ply")))[0]
     scene = threedmatch.load_fragment_scene(os.path.dirname(first))
     return (scene, *scene.pairs[0])
@@ -98,11 +98,11 @@ def pair_files():
 
 def fragments(keypoints):
     """``(fragment to describe, (source, target) files of the pair to register)``."""
-    from sphere_jax.eval import scenes
+    from sphere_jax.eval import pair_sets
     scene, i, j = _pair()
     with warnings.catch_warnings():          # the pairs of fragments not here: not used
         warnings.simplefilter("ignore")
-        frag = scenes.prepare(scenes.fragment_scene(scene), i, n_keypoints=keypoints)
+        frag = pair_sets.prepare(pair_sets.fragment_scene(scene), i, n_keypoints=keypoints)
     return frag, (scene.fragment_path(j), scene.fragment_path(i))
 
 

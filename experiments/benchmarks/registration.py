@@ -10,9 +10,9 @@ import sys
 import time
 
 from sphere_jax import paths
-from sphere_jax.data import pipeline
+from sphere_jax.data import scan_roots
 from sphere_jax.data.readers import threedmatch
-from sphere_jax.eval import registration, scenes
+from sphere_jax.eval import pair_sets, registration
 from sphere_jax.features import methods as method_lib
 
 
@@ -20,11 +20,11 @@ def run(keypoints=5000, methods=("fpfh", "shot", "lead"), **_):
     """Seconds per stage of one pair's evaluation, end to end (compilation included)."""
     kitchen = paths.real_data("3dmatch", "7-scenes-redkitchen")
     if kitchen and os.path.isdir(kitchen):
-        pair_set = scenes.fragment_scene(threedmatch.load_fragment_scene(kitchen,
+        pair_set = pair_sets.fragment_scene(threedmatch.load_fragment_scene(kitchen,
                                                                       kitchen + "-evaluation"))
         pair = (0, 5)
     else:
-        pair_set = scenes.find_pair_sets(pipeline.default_scan_root())[0]
+        pair_set = pair_sets.find_pair_sets(scan_roots.default_scan_root())[0]
         pair = pair_set.pairs[0]
     bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "sound")}
     records, total = [], time.perf_counter()
@@ -38,7 +38,7 @@ def run(keypoints=5000, methods=("fpfh", "shot", "lead"), **_):
         return out
 
     frags = stage("prepare (voxel, normals, keypoints)", lambda: {
-        k: scenes.prepare(pair_set, k, n_keypoints=keypoints) for k in pair})
+        k: pair_sets.prepare(pair_set, k, n_keypoints=keypoints) for k in pair})
     for m in methods:
         describe = method_lib.descriptor(m, 0.30, bundles, 0.15)
         desc = stage(f"{m}: describe 2x{keypoints}", lambda: {k: describe(f)

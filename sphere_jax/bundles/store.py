@@ -46,7 +46,7 @@ def write_json(path, text):
 def save(path, config, variables, training_data=None):
     """Write a bundle folder ``path`` (created if missing); returns its absolute path.
     ``variables``: ``{'params', 'batch_stats'}``; ``training_data``: a JSON-able statement of
-    the training data (see :meth:`sphere_jax.data.pipeline.PatchSource.statement`)."""
+    the training data (see :meth:`sphere_jax.data.patch_source.PatchSource.statement`)."""
     path = os.path.abspath(str(path))
     # In a multi-host run every process calls this (orbax's save is collective) with the same
     # folder; the files themselves are written by process 0.

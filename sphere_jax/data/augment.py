@@ -1,12 +1,15 @@
 """Seeded augmentations of point clouds and patches (pure numpy; pass a Generator).
 
 ``occlude`` is the seed's occlusion augmentation (CONVENTIONS.md §7, thesis 3.1.5), applied to the
-rotated copy only during Compass training.
+rotated copy only during Compass training; ``rotated_copies`` makes Compass's training pairs
+from it.
 """
 from __future__ import annotations
 
 import numpy as np
 from sklearn.neighbors import NearestNeighbors
+
+from sphere_jax import checks
 
 
 def random_rotations(rng: np.random.Generator, n=None):
@@ -71,3 +74,27 @@ def change_density(points, keep_fraction, rng: np.random.Generator):
         raise ValueError(f"keep_fraction must be in (0, 1], got {keep_fraction}")
     n = max(1, int(round(keep_fraction * len(points))))
     return points[np.sort(rng.choice(len(points), n, replace=False))]
+
+
+def rotated_copies(patches_BxNx3, rng: np.random.Generator, occlusion=True, noise=0.0,
+                   turns_Bx3x3=None):
+    """Each unit patch rotated by a random rotation, occluded (seed 3.1.5), resampled to N
+    points and, with ``noise`` > 0, moved by Gaussian noise of that std (units of the radius):
+    ``{'copies': [B, N, 3], 'rotations': [B, 3, 3]}`` — Compass's training pairs. With
+    ``turns_Bx3x3`` the patches are already turned by those rotations from the frame the
+    network's other input is in (copies from another scan), and ``'rotations'`` include them."""
+    if not np.isfinite(noise) or noise < 0:
+        raise checks.InputError("copy_jitter", "a finite number >= 0", repr(noise))
+    b, n, _ = patches_BxNx3.shape
+    rots = random_rotations(rng, b)
+    cop = np.empty_like(patches_BxNx3)
+    for k in range(b):
+        rotated = rotate(patches_BxNx3[k], rots[k])
+        if occlusion:
+            rotated = occlude(rotated, 1.0, rng)
+        cop[k] = resample(rotated, n, rng)
+        if noise:
+            cop[k] = jitter(cop[k], noise, rng)
+    if turns_Bx3x3 is not None:
+        rots = rots @ turns_Bx3x3
+    return {"copies": cop, "rotations": rots.astype(np.float32)}

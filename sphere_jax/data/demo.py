@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 
 from sphere_jax import paths
-from sphere_jax.data import pipeline
+from sphere_jax.data import scan_roots
 from sphere_jax.data.readers import stanford, threedmatch
 
 real_data_root = paths.real_data_root
@@ -32,7 +32,7 @@ def fragment_pair():
         i, j = 0, 5
     else:
         import glob
-        d = sorted(glob.glob(os.path.join(pipeline.default_scan_root(), "*", "cloud_bin_0.ply")))
+        d = sorted(glob.glob(os.path.join(scan_roots.default_scan_root(), "*", "cloud_bin_0.ply")))
         scene = threedmatch.load_fragment_scene(os.path.dirname(d[0]))
         i, j = scene.pairs[0]
     return (scene.cloud(j).points, scene.cloud(i).points), scene.transforms[(i, j)]

@@ -75,7 +75,7 @@ def apply(shapes, centres, frames_Sx3x3):
 
 
 def oriented_source(source, orienter, rotated_copies=0, seed=0, progress=True):
-    """A copy of the :class:`~sphere_jax.data.pipeline.ShapeSource` ``source`` whose shapes,
+    """A copy of the :class:`~sphere_jax.data.shape_source.ShapeSource` ``source`` whose shapes,
     in every split, are in ``orienter``'s frames. ``rotated_copies`` = k > 0: the training split
     instead holds k copies of each shape, each turned by a seeded random rotation before it is
     oriented (the classifier then learns the frames Compass gives turned shapes, its mistakes

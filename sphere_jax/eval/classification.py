@@ -4,7 +4,7 @@ tested in canonical pose (NR) and under arbitrary rotations (AR).
 The ``classification`` task (``configs/eval_classification.py``): ``run(config, workdir)``
 scores each method's classifier — the shipped bundle of its recipe, or, where none is given,
 one trained here (``workdir/<method>``) — on the whole test split of
-:class:`~sphere_jax.data.pipeline.ShapeSource`, as is and with every shape turned by a seeded
+:class:`~sphere_jax.data.shape_source.ShapeSource`, as is and with every shape turned by a seeded
 random rotation. For the Compass methods it also measures why AR loses to NR: the share of test
 shapes whose frame, turned, lands within :data:`FRAME_TOLERANCE_DEG` of the canonical shape's
 (per class), and the accuracy on those shapes and on the rest.

@@ -26,7 +26,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from sphere_jax.eval import processes, report, resume, tasks, timing
-from sphere_jax.eval import scenes as scene_lib
+from sphere_jax.eval import pair_sets as scene_lib
 from sphere_jax.features import methods as method_lib
 from sphere_jax.features import voted
 from sphere_jax.registration.estimation import SCREEN_ITERATIONS, consensus, ransac

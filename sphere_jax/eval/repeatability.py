@@ -18,7 +18,7 @@ from tqdm.auto import tqdm
 from sphere_jax import models, training
 from sphere_jax.bundles import inference, store
 from sphere_jax.eval import processes, report, resume, tasks
-from sphere_jax.eval import scenes as scene_lib
+from sphere_jax.eval import pair_sets as scene_lib
 from sphere_jax.features import methods as method_lib
 from sphere_jax.spherical import so3
 from sphere_jax.training import adaptation, checkpoints

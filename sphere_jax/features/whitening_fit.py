@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax import checks, paths
 from sphere_jax.bundles import inference, model_card, store
-from sphere_jax.data import pipeline
+from sphere_jax.data import scan_roots
 from sphere_jax.features import methods
 from sphere_jax.bundles import whitening
 
@@ -26,12 +26,12 @@ SCANS, KEYPOINTS = 12, 1500     # 18 000 keypoints: 35× LEAD's 512 dimensions
 def training_clouds(config, scans=SCANS, keypoints=KEYPOINTS, seed=0, progress=True):
     """``([(points, keypoints)], scan paths)``: ``scans`` scans evenly spread over
     ``config.data.root``'s, on its voxel grid, ``keypoints`` random ones each."""
-    found = pipeline.scan_paths(config.data.root)
+    found = scan_roots.scan_paths(config.data.root)
     picked = [found[i] for i in np.unique(np.linspace(0, len(found) - 1, scans).round()
                                           .astype(int))]
     clouds = []
     for i, path in enumerate(tqdm(picked, desc="training scans", disable=not progress)):
-        points = pipeline.load_scan(path, config.data.voxel)
+        points = scan_roots.load_scan(path, config.data.voxel)
         rng = np.random.default_rng([seed, i])
         clouds.append((points, rng.choice(len(points), min(keypoints, len(points)),
                                           replace=False)))

@@ -5,7 +5,7 @@ import os
 
 from sphere_jax import checks, models
 from sphere_jax.training import warm_start
-from sphere_jax.data import evaluation_scenes, oriented, pipeline
+from sphere_jax.data import held_out, oriented, patch_source, scan_roots, shape_source
 from sphere_jax.data.generators import synthetic
 
 
@@ -21,35 +21,35 @@ def check_roots(config):
     d = config.data
     if models.spec(config.model).labelled or d.get("shapes", False):
         return
-    entries = pipeline.root_entries(d.root)
+    entries = scan_roots.root_entries(d.root)
     allow = bool(d.get("allow_evaluation_scenes", False))
     pack = config.train.get("pack", "")
     if pack:                            # another machine: the entries are read from the pack,
-        packed = [p for f in pipeline.packed_folders(d.root, pack)      # which names where
-                  for p in pipeline.find_scans(f)]                      # each scan came from
-        evaluation_scenes.check_training_scans(
-            entries + [pipeline.scan_folder_label(p) for p in packed], allow)
+        packed = [p for f in scan_roots.packed_folders(d.root, pack)      # which names where
+                  for p in scan_roots.find_scans(f)]                      # each scan came from
+        held_out.check_training_scans(
+            entries + [scan_roots.scan_folder_label(p) for p in packed], allow)
         return
-    evaluation_scenes.check_training_scans([pipeline.entry_path(e) for e in entries], allow)
+    held_out.check_training_scans([scan_roots.entry_path(e) for e in entries], allow)
     for entry in entries:
-        if not entry.startswith("embedded") and not os.path.exists(pipeline.entry_path(entry)):
+        if not entry.startswith("embedded") and not os.path.exists(scan_roots.entry_path(entry)):
             raise checks.ConfigError("config.data.root", "comma-separated scan files or "
                                      "folders, 'embedded:N' or 'shared/<path>'", entry)
 
 
 def build_source(config, orient_shapes=None, progress=True):
-    """The data of ``config.data``: a :class:`~sphere_jax.data.pipeline.PatchSource` of the
+    """The data of ``config.data``: a :class:`~sphere_jax.data.patch_source.PatchSource` of the
     training scans (refused where they hold an evaluation scene, unless
-    ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.pipeline.ShapeSource` —
+    ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.shape_source.ShapeSource` —
     for a classifier with ``config.orient_bundle``, its shapes in the frames
     ``orient_shapes`` gives them (:func:`check_orient`), each oriented once
     (:mod:`sphere_jax.data.oriented`)."""
     d = config.data
     if models.spec(config.model).labelled or d.get("shapes", False):
-        root = pipeline.entry_path(d.root) if d.root else synthetic.default_root("modelnet")
-        source = pipeline.ShapeSource(root, d.n_points, config.seed,
-                                      d.get("holdout_every", pipeline.HOLDOUT_EVERY),
-                                      d.get("val_every", pipeline.HOLDOUT_EVERY))
+        root = scan_roots.entry_path(d.root) if d.root else synthetic.default_root("modelnet")
+        source = shape_source.ShapeSource(root, d.n_points, config.seed,
+                                      d.get("holdout_every", shape_source.HOLDOUT_EVERY),
+                                      d.get("val_every", shape_source.HOLDOUT_EVERY))
         if not config.get("orient_bundle"):
             return source
         check_orient(config, orient_shapes)
@@ -58,14 +58,14 @@ def build_source(config, orient_shapes=None, progress=True):
     allow = bool(d.get("allow_evaluation_scenes", False))
     check_roots(config)              # the entries first (before an RGB-D sequence is fused),
     # then every scan and its origin
-    groups = pipeline.scan_groups(d.root, config.train.get("pack", ""))
+    groups = scan_roots.scan_groups(d.root, config.train.get("pack", ""))
     scans = [p for g in groups for p in g]
-    evaluation_scenes.check_training_scans(
-        scans + [pipeline.scan_folder_label(p) for p in scans], allow)
-    return pipeline.PatchSource([p for g in groups for p in g], d.voxel, d.keypoint_leaf,
+    held_out.check_training_scans(
+        scans + [scan_roots.scan_folder_label(p) for p in scans], allow)
+    return patch_source.PatchSource([p for g in groups for p in g], d.voxel, d.keypoint_leaf,
                                 d.radius, d.n_points, d.min_points, d.val_fraction, config.seed,
                                 groups=[k for k, g in enumerate(groups) for _ in g],
-                                weights=pipeline.parse_weights(d.get("root_weights", ""),
+                                weights=scan_roots.parse_weights(d.get("root_weights", ""),
                                                                len(groups)))
 
 
@@ -86,7 +86,7 @@ def get_batch(config, source, step, split="train"):
     ``config.orient_bundle`` reads shapes :func:`build_source` oriented already (turned at
     random before, with ``data.rotate``)."""
     spec, bs = models.spec(config.model), config.train.batch_size
-    if not isinstance(source, pipeline.ShapeSource):
+    if not isinstance(source, shape_source.ShapeSource):
         added = warm_start.DATA_ADDED
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,
                             copy_draw=config.data.get("copy_draw", added["copy_draw"]),

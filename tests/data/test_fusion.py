@@ -7,7 +7,7 @@ import pytest
 from sklearn.neighbors import KDTree
 
 from sphere_jax import paths
-from sphere_jax.data import fusion, pipeline
+from sphere_jax.data import fusion, patch_source, scan_roots
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import io, rgbd
 
@@ -45,11 +45,11 @@ def test_each_frame_lies_on_its_fused_fragment(frames):
 def test_fragments_are_cached_and_found_as_scans(frames, tmp_path, monkeypatch):
     monkeypatch.setenv("SPHERE_JAX_DATA", str(tmp_path))
     seq = rgbd.read_frame_sequence(frames)
-    files = pipeline.find_scans(frames)
+    files = scan_roots.find_scans(frames)
     n = len(fusion.fragment_runs(len(seq), 25, 25))
     assert len(files) == n and all(os.path.isfile(f) for f in files)
     stamp = [os.path.getmtime(f) for f in files]
-    assert pipeline.find_scans(frames) == files                 # cached: not fused again
+    assert scan_roots.find_scans(frames) == files                 # cached: not fused again
     assert [os.path.getmtime(f) for f in files] == stamp
     assert fusion.fused_source(os.path.dirname(files[0])) == os.path.abspath(frames)
 
@@ -108,19 +108,19 @@ def test_root_weights_draw_each_entry_by_its_share(tmp_path):
         io.write_ply(str(path), pts.astype(np.float32) + [10.0 * k, 0, 0])
         scans.append(str(path))
     kw = dict(voxel=0.02, keypoint_leaf=0.1, radius=0.3, n_points=32, min_points=50)
-    plain = pipeline.PatchSource(scans, **kw)
+    plain = patch_source.PatchSource(scans, **kw)
     counts = np.bincount(plain.splits["train"][:, 0])
     assert counts[0] > 2 * counts[1]                 # by keypoint count: scan 0 dominates
-    w = pipeline.parse_weights("1,1", 2)
-    even = pipeline.PatchSource(scans, **kw, groups=[0, 1], weights=w)
+    w = scan_roots.parse_weights("1,1", 2)
+    even = patch_source.PatchSource(scans, **kw, groups=[0, 1], weights=w)
     share = np.mean([np.mean(even.draw(np.random.default_rng(s), 64)[:, 0] == 1)
                      for s in range(20)])
     assert 0.4 < share < 0.6
-    only = pipeline.PatchSource(scans, **kw, groups=[0, 1],
-                                weights=pipeline.parse_weights("0,3", 2))
+    only = patch_source.PatchSource(scans, **kw, groups=[0, 1],
+                                weights=scan_roots.parse_weights("0,3", 2))
     assert np.all(only.draw(np.random.default_rng(0), 64)[:, 0] == 1)
     assert only.batch(0, 4)["patches"].shape == (4, 32, 3)
     with pytest.raises(ValueError, match="root_weights"):
-        pipeline.parse_weights("1,x", 2)
+        scan_roots.parse_weights("1,x", 2)
     with pytest.raises(ValueError, match="one per data.root entry"):
-        pipeline.parse_weights("1,1,1", 2)
+        scan_roots.parse_weights("1,1,1", 2)

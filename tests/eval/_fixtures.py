@@ -8,29 +8,29 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax import paths
-from sphere_jax.data import pipeline
+from sphere_jax.data import scan_roots
 from sphere_jax.data.readers import threedmatch
-from sphere_jax.eval import scenes
+from sphere_jax.eval import pair_sets
 from sphere_jax.registration.fragments import Fragment
 
 
-def kitchen(shared) -> scenes.PairSet:
+def kitchen(shared) -> pair_sets.PairSet:
     root = os.path.join(shared, "3dmatch", "7-scenes-redkitchen")
-    return scenes.fragment_scene(threedmatch.load_fragment_scene(root, root + "-evaluation"))
+    return pair_sets.fragment_scene(threedmatch.load_fragment_scene(root, root + "-evaluation"))
 
 
-def kitchen_or_embedded() -> scenes.PairSet:
+def kitchen_or_embedded() -> pair_sets.PairSet:
     """The real redkitchen fragments when present, else the first embedded synthetic room
     (3DMatch layout, 2.5 cm fused depth): what a test runs on when it only needs a real-looking
     scan, so that a fresh clone skips nothing."""
     root = paths.real_data_root()
     if root is not None:
         return kitchen(root)
-    return scenes.find_pair_sets(pipeline.default_scan_root())[0]
+    return pair_sets.find_pair_sets(scan_roots.default_scan_root())[0]
 
 
-def bunny(shared, voxel=0.001) -> scenes.PairSet:
-    return scenes.stanford_scans(os.path.join(shared, "stanford", "bunny", "data", "bun.conf"),
+def bunny(shared, voxel=0.001) -> pair_sets.PairSet:
+    return pair_sets.stanford_scans(os.path.join(shared, "stanford", "bunny", "data", "bun.conf"),
                                  voxel)
 
 
@@ -46,11 +46,11 @@ def moved_pair(n_keypoints=48):
     pair (f, g)), and T: corresponding keypoints share their index."""
     from sphere_jax.spherical import so3
     pair_set = kitchen_or_embedded()
-    f = scenes.prepare(pair_set, pair_set.pairs[0][0], n_keypoints=n_keypoints, seed=1)
+    f = pair_sets.prepare(pair_set, pair_set.pairs[0][0], n_keypoints=n_keypoints, seed=1)
     t = np.eye(4)
     t[:3, :3] = so3.euler_to_matrix_np(0.9, 1.3, -2.1)
     t[:3, 3] = [0.4, -0.2, 1.0]
-    moved = scenes.transform(f.points, np.linalg.inv(t)).astype(np.float32)
+    moved = pair_sets.transform(f.points, np.linalg.inv(t)).astype(np.float32)
     g = Fragment(f.key, moved, (f.normals @ t[:3, :3]).astype(np.float32), f.keypoints,
                         KDTree(moved))
     return f, g, t

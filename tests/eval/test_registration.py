@@ -3,7 +3,7 @@ import numpy as np
 from sklearn.neighbors import KDTree
 
 from sphere_jax.data import augment
-from sphere_jax.eval import registration, scenes
+from sphere_jax.eval import pair_sets, registration
 from sphere_jax.features import descriptors
 from sphere_jax.registration.fragments import Fragment
 from tests.eval import _fixtures
@@ -33,7 +33,7 @@ def test_known_matches_give_known_recall_inliers_and_pose():
     rng = np.random.default_rng(0)
     t_gt = _rigid(40, [0.5, -0.2, 0.1])
     pi = rng.uniform(-1, 1, (10, 3))
-    pj = scenes.transform(pi, np.linalg.inv(t_gt))
+    pj = pair_sets.transform(pi, np.linalg.inv(t_gt))
     pj[7:] += [1.0, 0, 0]
     desc = np.eye(10, dtype=np.float32)
     row = registration.match_pair(_fragment(pi), _fragment(pj, 1), desc, desc, t_gt,
@@ -61,7 +61,7 @@ def test_fpfh_ransac_registers_redkitchen_0_5(shared):
     """The issue's acceptance check: FPFH + RANSAC on 3DMatch redkitchen (0, 5)."""
     pair_set = _fixtures.kitchen(shared)
     t_gt = pair_set.transforms[(0, 5)]
-    frags = {k: scenes.prepare(pair_set, k, voxel=0.02, n_keypoints=5000) for k in (0, 5)}
+    frags = {k: pair_sets.prepare(pair_set, k, voxel=0.02, n_keypoints=5000) for k in (0, 5)}
     desc = {k: descriptors.fpfh(f.points, f.normals, f.keypoints, 0.15)
             for k, f in frags.items()}
     row = registration.match_pair(frags[0], frags[5], desc[0], desc[5], t_gt)
@@ -72,12 +72,12 @@ def test_fpfh_ransac_registers_redkitchen_0_5(shared):
 
 def test_rotated_variant_keeps_ground_truth_consistent(shared):
     pair_set = _fixtures.kitchen(shared)
-    rotated, rot = scenes.rotate(pair_set, seed=3)
+    rotated, rot = pair_sets.rotate(pair_set, seed=3)
     assert not np.allclose(rot[0], np.eye(4))
     pi, pj = rotated.load(0), rotated.load(5)
-    d, _ = KDTree(pi).query(scenes.transform(pj, rotated.transforms[(0, 5)]), k=1)
+    d, _ = KDTree(pi).query(pair_sets.transform(pj, rotated.transforms[(0, 5)]), k=1)
     d0, _ = KDTree(pair_set.load(0)).query(
-        scenes.transform(pair_set.load(5), pair_set.transforms[(0, 5)]), k=1)
+        pair_sets.transform(pair_set.load(5), pair_set.transforms[(0, 5)]), k=1)
     assert abs(np.mean(d < 0.05) - np.mean(d0 < 0.05)) < 1e-3 and np.mean(d < 0.05) > 0.3
     assert np.allclose(augment.random_rotations(np.random.default_rng(0)).T @
                        augment.random_rotations(np.random.default_rng(0)), np.eye(3))

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sphere_jax.data import augment
-from sphere_jax.eval import repeatability, scenes
+from sphere_jax.eval import pair_sets, repeatability
 from sphere_jax.features import methods
 from sphere_jax.registration.fragments import Fragment
 from tests.eval import _fixtures
@@ -18,7 +18,7 @@ def test_identical_frames_are_repeatable_and_perpendicular_ones_not():
     assert r["n"] == 50 and r["rep"] == 1.0 and r["mean_angle_deg"] < 1e-6
     turn = np.eye(4)
     turn[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]                  # 90° about z
-    moved = Fragment(1, scenes.transform(pts, np.linalg.inv(turn)).astype(np.float32),
+    moved = Fragment(1, pair_sets.transform(pts, np.linalg.inv(turn)).astype(np.float32),
                             None, np.arange(50), None)
     moved.tree = KDTree(moved.points)
     r = repeatability.pair_repeatability(same, frag, moved, turn, 0.01)
@@ -33,7 +33,7 @@ def bunny_pair(request):
     s = _fixtures.bunny(shared)
     pair = ("bun000.ply", "bun045.ply")
     assert pair in s.transforms, sorted(s.transforms)
-    frags = {k: scenes.prepare(s, k, voxel=0.001, n_keypoints=1000) for k in pair}
+    frags = {k: pair_sets.prepare(s, k, voxel=0.001, n_keypoints=1000) for k in pair}
     return frags, s.transforms[pair], pair
 
 

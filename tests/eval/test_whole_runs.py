@@ -7,7 +7,7 @@ import pytest
 
 from configs import eval_lrf, eval_registration
 from sphere_jax import checks
-from sphere_jax.eval import report, scenes, tasks
+from sphere_jax.eval import pair_sets, report, tasks
 from sphere_jax.features import methods
 
 
@@ -68,7 +68,7 @@ def test_bad_config_values_are_named():
         tasks.chosen_methods(c, ("fpfh", "shot"), {})
     c.data.root = "/no/such/folder"
     with pytest.raises(FileNotFoundError, match="/no/such/folder"):
-        scenes.pair_sets(c)
+        pair_sets.pair_sets(c)
     c.bundle = "/no/such/bundle"
     with pytest.raises(checks.ConfigError, match="config.bundle must be a bundle folder"):
         tasks.bundle_paths(c)
@@ -103,13 +103,13 @@ def test_partial_scene_and_ground_truth_elsewhere(tmp_path):
     lo.mkdir(parents=True)
     threedmatch.write_gt_log(str(lo / "gt.log"), {(8, 15): t, (3, 8): t}, 20)
     with pytest.raises(ValueError, match="no gt.log"):
-        scenes.find_pair_sets(tmp_path / "scans")                  # none beside the clouds
+        pair_sets.find_pair_sets(tmp_path / "scans")                  # none beside the clouds
     with pytest.warns(UserWarning, match="1 ground-truth pair"):
-        sets = scenes.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "lomatch")
+        sets = pair_sets.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "lomatch")
     assert [(s.name, s.pairs) for s in sets] == [("kitchen", [(8, 15)])]
     np.testing.assert_allclose(sets[0].transforms[(8, 15)], t)
     with pytest.raises(FileNotFoundError, match="data.gt"):
-        scenes.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "nowhere")
+        pair_sets.find_pair_sets(tmp_path / "scans", gt_root=tmp_path / "nowhere")
 
 
 def test_a_killed_evaluation_redoes_only_what_it_had_not_finished(tmp_path, monkeypatch):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sphere_jax.data import augment
-from sphere_jax.eval import scenes
+from sphere_jax.eval import pair_sets
 from sphere_jax.features import descriptors, lrfs
 from sphere_jax.features.neighbourhood import radius_neighbourhoods
 from sphere_jax.registration.fragments import Fragment, estimate_normals
@@ -14,7 +14,7 @@ from tests.eval import _fixtures
 @pytest.fixture(scope="module")
 def kitchen_fragment():
     pair_set = _fixtures.kitchen_or_embedded()
-    return scenes.prepare(pair_set, pair_set.pairs[0][0], voxel=0.02, n_keypoints=300)
+    return pair_sets.prepare(pair_set, pair_set.pairs[0][0], voxel=0.02, n_keypoints=300)
 
 
 def _supports(f, k):

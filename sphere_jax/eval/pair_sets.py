@@ -20,7 +20,7 @@ from sklearn.neighbors import KDTree
 from tqdm.auto import tqdm
 
 from sphere_jax import checks
-from sphere_jax.data import augment, patches, pipeline
+from sphere_jax.data import augment, patches, scan_roots
 from sphere_jax.data.poses import transform
 from sphere_jax.data.readers import stanford, threedmatch
 from sphere_jax.registration.fragments import Fragment, fragment
@@ -169,7 +169,7 @@ def prepare_all(pair_set: PairSet, seed=0, progress=False, **prepare_kwargs) -> 
 def data_root(config):
     if config.data.root:
         return config.data.root
-    return pipeline.default_scan_root()
+    return scan_roots.default_scan_root()
 
 
 def check_data(config):

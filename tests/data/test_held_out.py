@@ -6,7 +6,7 @@ import os
 import pytest
 
 from sphere_jax import paths, training
-from sphere_jax.data import evaluation_scenes as es
+from sphere_jax.data import held_out as es
 
 CLEAN = ["shared/open3d_testdata/RGBD",
          "shared/modelnet40/modelnet40_normal_resampled",
@@ -28,9 +28,9 @@ def test_names_and_real_paths_are_recognised_and_clean_ones_are_not():
         "sun3d-home_at"
     assert es.scene_of("shared/rgbd/3dmatch_toolbox/rgbd-frames (fused RGB-D)").name == \
         "redkitchen"
-    from sphere_jax.data import pipeline               # the main job's rooms, not the others
-    assert es.scene_of(pipeline.entry_path("embedded")).name == "embedded rooms"
-    assert es.scene_of(pipeline.entry_path("embedded:1")) is None
+    from sphere_jax.data import scan_roots             # the main job's rooms, not the others
+    assert es.scene_of(scan_roots.entry_path("embedded")).name == "embedded rooms"
+    assert es.scene_of(scan_roots.entry_path("embedded:1")) is None
     root = paths.real_data_root()
     if root:
         assert es.scene_of(os.path.join(root, "open3d_testdata", "fragment.pcd")).name == \

@@ -1,72 +1,10 @@
-"""Training sources: the shape source reads ModelNet40's released layouts."""
-import os
+"""The scans' patch source: copies drawn from a second sampling of the support or from
+another scan of the scene (by the ground truth's poses)."""
 
 import numpy as np
 import pytest
 
-from sphere_jax.data import pipeline
-
-
-def test_shape_source_reads_the_three_modelnet_layouts(shared, tmp_path):
-    off = pipeline.ShapeSource(os.path.join(shared, "modelnet40", "off_meshes", "ModelNet10"),
-                               256)
-    assert off.classes == ["sofa", "table"]
-    pts = off.splits["train"][0][0]
-    assert pts.shape == (10_000, 3) and abs(np.linalg.norm(pts, axis=1).max() - 1) < 1e-5
-    res = pipeline.ShapeSource(os.path.join(shared, "modelnet40",
-                                            "modelnet40_normal_resampled"), 256)
-    assert len(res.classes) == 40
-    assert sum(len(v[0]) for v in res.splits.values()) == 127
-    empty = tmp_path / "empty"
-    empty.mkdir()
-    with pytest.raises(FileNotFoundError, match="no ModelNet layout"):
-        pipeline.ShapeSource(empty, 32)
-
-
-def test_shape_source_reads_pointnet_h5(tmp_path):
-    h5py = pytest.importorskip("h5py")
-    with h5py.File(tmp_path / "ply_data_train0.h5", "w") as f:
-        f["data"] = np.random.default_rng(0).normal(size=(3, 64, 3)).astype(np.float32)
-        f["label"] = np.array([[0], [2], [1]])
-    h5 = pipeline.ShapeSource(tmp_path, 32)
-    assert h5.classes == ["0", "1", "2"] and h5.batch(0, 2)["points"].shape == (2, 32, 3)
-
-
-def test_train_only_shape_set_gets_three_disjoint_splits(tmp_path):
-    """A set without a test split (ModelNet40's train-only HDF5): each 5th shape of a class in
-    file order tests, each 5th of the rest validates, the rest trains; no shape in two."""
-    h5py = pytest.importorskip("h5py")
-    labels = np.repeat([0, 1, 2], [26, 10, 4])              # class 2: too few to hold out
-    data = np.random.default_rng(0).normal(size=(len(labels), 16, 3)).astype(np.float32)
-    with h5py.File(tmp_path / "ply_data_train0.h5", "w") as f:
-        f["data"], f["label"] = data, labels[:, None]
-    src = pipeline.ShapeSource(tmp_path, 16)
-    sizes = {k: np.bincount(v[1], minlength=3).tolist() for k, v in src.splits.items()}
-    # class 0: 26 shapes -> 5 test (ranks 5, 10, ..., 25), 21 left -> 4 val, 17 train
-    assert sizes == {"test": [5, 2, 0], "val": [4, 1, 0], "train": [17, 7, 4]}
-    ids = {k: {s.tobytes() for s in v[0]} for k, v in src.splits.items()}
-    assert not (ids["train"] & ids["val"] or ids["train"] & ids["test"] or
-                ids["val"] & ids["test"])
-    first = lambda split: src.splits[split][0][0]
-    np.testing.assert_array_equal(first("test"), data[4])    # the 5th shape of class 0
-    np.testing.assert_array_equal(first("val"), data[5])     # the 5th of the rest
-    assert src.statement()["shapes"] == {"train": 28, "test": 7, "val": 5}
-    with pytest.raises(ValueError, match="val_every"):
-        pipeline.ShapeSource(tmp_path, 16, val_every=1)
-
-
-def test_a_set_with_its_own_test_split_keeps_it_and_validates_on_train_shapes(tmp_path):
-    rng = np.random.default_rng(0)
-    (tmp_path / "shape_names.txt").write_text("cup\n")
-    (tmp_path / "cup").mkdir()
-    for i in range(8):
-        np.savetxt(tmp_path / "cup" / f"cup_{i:04d}.txt", rng.normal(size=(20, 6)),
-                   delimiter=",")
-    (tmp_path / "train.txt").write_text("".join(f"cup_{i:04d}\n" for i in range(6)))
-    (tmp_path / "test.txt").write_text("cup_0006\ncup_0007\n")
-    res = pipeline.ShapeSource(tmp_path, 16)
-    assert "the set's own test split" in res.statement()["splits"]
-    assert {k: len(v[0]) for k, v in res.splits.items()} == {"train": 5, "val": 1, "test": 2}
+from sphere_jax.data import patch_source, scan_roots
 
 
 def test_copies_drawn_from_the_whole_support_are_a_second_sampling(tmp_path):
@@ -78,7 +16,7 @@ def test_copies_drawn_from_the_whole_support_are_a_second_sampling(tmp_path):
     rng = np.random.default_rng(0)
     pts = np.c_[rng.uniform(0, 1.5, (6000, 2)), np.zeros(6000)].astype(np.float32)
     io.write_ply(str(tmp_path / "plane.ply"), pts)
-    src = pipeline.PatchSource([str(tmp_path / "plane.ply")], voxel=0.01, keypoint_leaf=0.2,
+    src = patch_source.PatchSource([str(tmp_path / "plane.ply")], voxel=0.01, keypoint_leaf=0.2,
                                radius=0.3, n_points=64, min_points=50)
 
     def unrotated(draw, jitter=0.0):
@@ -129,7 +67,7 @@ def test_scan_copies_are_the_same_surface_seen_by_another_scan():
     rotation it lies on the patch's surface as closely as a second draw from the same scan
     does (mean distance to the patch's nearest point, in units of the radius)."""
     from sklearn.neighbors import KDTree
-    src = pipeline.PatchSource(pipeline.scan_paths("embedded"), 0.02, 0.1, 0.3, 256, 300)
+    src = patch_source.PatchSource(scan_roots.scan_paths("embedded"), 0.02, 0.1, 0.3, 256, 300)
 
     def gap_and_shared(draw):
         b = src.batch(0, 16, copies=True, occlusion=False, copy_draw=draw)
