@@ -187,16 +187,24 @@ def test_a_registration_that_fails_says_so(pair, tmp_path, capsys):
 
 
 def test_few_inliers_are_reported_unconfirmed(pair):
-    """Registered with fewer than CONFIDENT_INLIERS: still a result, but its summary warns."""
+    """Registered with fewer than CONFIDENT_INLIERS, or fewer than RIVAL_MARGIN times the best
+    other transform's: still a result, but its summary warns."""
     (src, dst), t_gt = pair
     result = sphere_jax.register(src, dst, method="fpfh", voxel=0.02, radius=0.3)
     assert result.ok, result.summary()
-    enough = dataclasses.replace(result, inliers=align.CONFIDENT_INLIERS)
+    assert result.rival >= 0
+    n = align.CONFIDENT_INLIERS
+    enough = dataclasses.replace(result, inliers=n, rival=int(n // align.RIVAL_MARGIN))
     assert enough.confident and enough.summary().startswith("registered\n"), enough.summary()
-    few = dataclasses.replace(result, inliers=align.CONFIDENT_INLIERS - 1)
+    few = dataclasses.replace(result, inliers=n - 1, rival=0)
     assert few.ok and not few.confident
-    assert few.summary().startswith(f"registered, unconfirmed: {align.CONFIDENT_INLIERS - 1} "
+    assert few.summary().startswith(f"registered, unconfirmed: {n - 1} "
                                     "RANSAC inliers"), few.summary()
+    rivalled = dataclasses.replace(result, inliers=2 * n, rival=int(2 * n / align.RIVAL_MARGIN) + 1)
+    assert rivalled.ok and not rivalled.confident
+    assert rivalled.summary().startswith(f"registered, unconfirmed: {2 * n} RANSAC inliers "
+                                         f"against {rivalled.rival} for another transform"), \
+        rivalled.summary()
 
 
 @pytest.mark.slow

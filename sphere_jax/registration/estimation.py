@@ -54,6 +54,34 @@ def ransac_consensus(points_dst_Mx3, points_src_Mx3, max_distance=0.05, iteratio
     return t, int(np.sum(np.linalg.norm(moved - points_dst_Mx3, axis=1) < max_distance))
 
 
+def rival_consensus(points_dst_Mx3, points_src_Mx3, t, max_distance=0.05, same_deg=15.0,
+                    same_distance=0.3, iterations=50_000, seed=0, rounds=3):
+    """RANSAC's consensus for a transform other than ``t``: among the correspondences ``t``
+    leaves unexplained (farther than twice ``max_distance`` under it), the most one transform
+    brings within ``max_distance`` — skipping, up to ``rounds`` times, a consensus whose
+    transform is ``t`` again (within ``same_deg`` and ``same_distance``: matches just outside
+    the band, which agree with ``t``).
+
+    A transform found by chance among many wrong matches stands barely above its rival, which
+    is the chance level of those matches; a right one stands well above it. The ratio needs no
+    overlap and grows with neither the number of matches nor the descriptor, which is why
+    :mod:`sphere_jax.align` decides ``registered`` by it."""
+    dst, src = np.asarray(points_dst_Mx3), np.asarray(points_src_Mx3)
+    gap = lambda tr: np.linalg.norm(src @ tr[:3, :3].T + tr[:3, 3] - dst, axis=1)
+    left = gap(t) >= 2 * max_distance
+    for k in range(rounds):
+        if left.sum() < 3:
+            return 0
+        other, count = ransac_consensus(dst[left], src[left], max_distance, iterations,
+                                        seed + k)
+        turn = np.clip((np.trace(other[:3, :3].T @ t[:3, :3]) - 1) / 2, -1.0, 1.0)
+        if (np.degrees(np.arccos(turn)) >= same_deg
+                or np.linalg.norm(other[:3, 3] - t[:3, 3]) >= same_distance):
+            return count
+        left &= gap(other) >= max_distance
+    return 0
+
+
 def consensus(frag_i, frag_j, desc_i, desc_j, max_distance=0.05, iterations=50_000, seed=0):
     """How many mutual matches of two descriptor sets one rigid transform explains (RANSAC's
     inliers): a pair's agreement measured without its ground truth."""

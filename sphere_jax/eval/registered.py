@@ -1,0 +1,116 @@
+"""How often ``register``'s word is right: every pair with ground truth registered by
+:func:`sphere_jax.align.register` exactly as a user calls it (automatic scale, progressive
+keypoints, shipped bundles), each result sorted by status — ``registered`` (confident),
+``unconfirmed`` or ``failed`` — and by truth: right when RRE < 15° and RTE is below the
+registration's support radius (:func:`sphere_jax.eval.registration.registered`).
+
+:func:`fit` chooses the two thresholds of the status (RANSAC inliers and their margin over the
+best other transform, :data:`sphere_jax.align.CONFIDENT_INLIERS` and
+:data:`~sphere_jax.align.RIVAL_MARGIN`) on rows of validation pairs; the evaluation pairs only
+report the chosen ones.
+"""
+from __future__ import annotations
+
+import csv
+import os
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from sphere_jax import align
+from sphere_jax.eval.registration import registered, rre_rte
+
+FIELDS = ("set", "i", "j", "method", "status", "right", "inliers", "rival", "matches",
+          "fitness", "rre_deg", "rte", "radius", "seconds")
+STATUSES = ("registered", "unconfirmed", "failed")
+
+
+def status(reg: align.Registration) -> str:
+    return "failed" if not reg.ok else "registered" if reg.confident else "unconfirmed"
+
+
+def status_at(row, min_inliers, margin) -> str:
+    """The status a row's registration would have with these thresholds."""
+    if row["status"] == "failed":
+        return "failed"
+    inliers, rival = int(row["inliers"]), int(row["rival"])
+    return "registered" if inliers >= min_inliers and inliers >= margin * rival \
+        else "unconfirmed"
+
+
+def pair_row(pair_set, i, j, method, bundle=None):
+    """Register scan j onto scan i (``p_i = T p_j``) and say how it went."""
+    reg = align.register(pair_set.load(j), pair_set.load(i), method=method, bundle=bundle)
+    rre, rte = rre_rte(reg.transform, pair_set.transforms[(i, j)])
+    return {"set": pair_set.name, "i": i, "j": j, "method": method, "status": status(reg),
+            "right": int(registered(rre, rte, reg.radius)), "inliers": reg.inliers,
+            "rival": reg.rival, "matches": reg.matches, "fitness": round(reg.fitness, 4),
+            "rre_deg": round(rre, 3), "rte": float(f"{rte:.4g}"),
+            "radius": float(f"{reg.radius:.4g}"), "seconds": round(sum(reg.seconds.values()), 2)}
+
+
+def read_rows(path) -> list[dict]:
+    if not os.path.isfile(path):
+        return []
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def run(pair_sets, methods, out_csv, bundle=None, progress=True) -> list[dict]:
+    """Rows of every pair of ``pair_sets`` by every method, appended to ``out_csv`` one by one
+    (a rerun goes on where the last stopped)."""
+    rows = read_rows(out_csv)
+    done = {(r["set"], str(r["i"]), str(r["j"]), r["method"]) for r in rows}
+    todo = [(s, i, j, m) for m in methods for s in pair_sets for (i, j) in s.pairs
+            if (s.name, str(i), str(j), m) not in done]
+    new_file = not os.path.isfile(out_csv)
+    with open(out_csv, "a", newline="") as f:
+        writer = csv.DictWriter(f, FIELDS)
+        if new_file:
+            writer.writeheader()
+        for s, i, j, m in tqdm(todo, desc="register", unit="pair", disable=not progress):
+            row = pair_row(s, i, j, m, bundle)
+            writer.writerow(row)
+            f.flush()
+            rows.append({k: str(v) for k, v in row.items()})
+    return rows
+
+
+def counts(rows, min_inliers=None, margin=None) -> dict:
+    """``{method: {(right, status): n}}``; with thresholds, the statuses they would give."""
+    out = {}
+    for r in rows:
+        st = r["status"] if min_inliers is None else status_at(r, min_inliers, margin)
+        key = ("right" if int(r["right"]) else "wrong", st)
+        by = out.setdefault(r["method"], {})
+        by[key] = by.get(key, 0) + 1
+    return out
+
+
+def table(rows, min_inliers=None, margin=None) -> str:
+    """Markdown: per method, pairs and right / wrong results by status."""
+    head = ["method", "pairs"] + [f"{t} {s}" for t in ("right", "wrong") for s in STATUSES]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for method, by in counts(rows, min_inliers, margin).items():
+        cells = [by.get((t, s), 0) for t in ("right", "wrong") for s in STATUSES]
+        out.append(f"| {method} | {sum(cells)} | " + " | ".join(map(str, cells)) + " |")
+    return "\n".join(out)
+
+
+def fit(rows, inlier_grid=tuple(range(10, 81, 5)),
+        margin_grid=tuple(np.round(np.arange(1.0, 4.01, 0.25), 2))):
+    """``(min_inliers, margin, kept)``: of the thresholds under which no wrong result of
+    ``rows`` is ``registered``, those keeping the most right results ``registered`` (ties: the
+    lowest thresholds); ``kept`` is that share of the right results that succeeded."""
+    succeeded = [r for r in rows if r["status"] != "failed"]
+    right = [r for r in succeeded if int(r["right"])]
+    wrong = [r for r in succeeded if not int(r["right"])]
+    best = None
+    for n in inlier_grid:
+        for m in margin_grid:
+            if any(status_at(r, n, m) == "registered" for r in wrong):
+                continue
+            kept = np.mean([status_at(r, n, m) == "registered" for r in right]) if right else 0
+            if best is None or kept > best[2] + 1e-12:
+                best = (int(n), float(m), float(kept))
+    return best
