@@ -28,19 +28,20 @@ from sphere_jax.data import scan_roots
 from sphere_jax.data.readers import io
 from sphere_jax.features import whitening_fit
 from sphere_jax.training import adaptation, side_by_side
+from sphere_jax.registration import scale
 
 SCALE_SCANS = 8          # scans read to choose the scale (the first ones, in file order)
 
 
 def auto_scale(roots, voxel="auto", radius="auto"):
     """``(voxel, radius)`` for ``roots``' scans: each given, or chosen from the scans as
-    ``register`` chooses it (:func:`sphere_jax.align.auto_scale`)."""
+    ``register`` chooses it (:func:`sphere_jax.registration.scale.auto_scale`)."""
     if "auto" in (voxel, radius):
         scans = scan_roots.scan_paths(roots)
         if not scans:
             raise checks.MissingError(f"--data={roots!r}: no scans found")
         clouds = [io.read_points(p).points for p in scans[:SCALE_SCANS]]
-        auto_voxel, auto_radius = align.auto_scale(*clouds)
+        auto_voxel, auto_radius = scale.auto_scale(*clouds)
         voxel = auto_voxel if voxel == "auto" else voxel
         radius = auto_radius if radius == "auto" else radius
     return (checks.positive(float(voxel), "voxel"), checks.positive(float(radius), "radius"))

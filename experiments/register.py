@@ -7,7 +7,7 @@ and ``before_after.png``. ``--voxel`` and ``--radius`` default to ``auto``: chos
 clouds so that a support holds as many points as at training time (:mod:`sphere_jax.align`),
 and printed. A registration that does not succeed (too few points, no mutual matches, no
 RANSAC consensus, ICP fitness below ``--min-fitness``) prints ``FAILED: <reason>`` and exits
-with status 3; one that succeeds with fewer than 40 RANSAC inliers (``align.CONFIDENT_INLIERS``)
+with status 3; one that succeeds with fewer than 40 RANSAC inliers (``pipeline.CONFIDENT_INLIERS``)
 prints ``registered, unconfirmed``: on the benchmark's room scans wrong registrations had up to
 29.
 
@@ -25,6 +25,7 @@ import numpy as np
 from experiments import cli
 from sphere_jax import align
 from sphere_jax.features import registry
+from sphere_jax.registration import pipeline
 
 
 FAILED = 3          # exit status of a registration that did not succeed (2: bad usage)
@@ -40,7 +41,7 @@ def main(argv=None):
                              "lead_compass)")
     parser.add_argument("--voxel", type=cli.scale, default="auto")
     parser.add_argument("--radius", type=cli.scale, default="auto")
-    parser.add_argument("--keypoints", type=cli.positive_int, default=align.DEFAULT_KEYPOINTS,
+    parser.add_argument("--keypoints", type=cli.positive_int, default=pipeline.DEFAULT_KEYPOINTS,
                         help="random keypoints per cloud (fewer: faster, lower recall); a "
                              "quarter are described first, then half, then all, until they "
                              "register with confidence")
@@ -57,9 +58,9 @@ def main(argv=None):
     parser.add_argument("--no-icp", action="store_true")
     parser.add_argument("--seed", type=cli.non_negative_int, default=0)
     parser.add_argument("--out", default=None, help="folder for the matrix, cloud and picture")
-    parser.add_argument("--min-inliers", type=cli.non_negative_int, default=align.MIN_INLIERS,
+    parser.add_argument("--min-inliers", type=cli.non_negative_int, default=pipeline.MIN_INLIERS,
                         help="fewer RANSAC inliers is a failed registration")
-    parser.add_argument("--min-fitness", type=cli.fraction, default=align.MIN_FITNESS,
+    parser.add_argument("--min-fitness", type=cli.fraction, default=pipeline.MIN_FITNESS,
                         help="a lower ICP fitness is a failed registration")
     args = parser.parse_args(argv)
     from sphere_jax import workdirs

@@ -20,6 +20,7 @@ import os
 
 from experiments import cli
 from sphere_jax import align, files, workdirs
+from sphere_jax.registration import pipeline
 from sphere_jax.eval import pair_sets
 from sphere_jax.eval import registered as lib
 from sphere_jax.features import registry
@@ -45,7 +46,7 @@ def main(argv=None):
     rows = [r for r in rows if r["method"] in methods]
     command = cli.command("experiments.registered")
     out = [f"# register's status against the truth\n\n`{command}`\n",
-           f"Thresholds: {align.CONFIDENT_INLIERS} RANSAC inliers, {align.RIVAL_MARGIN:g}× "
+           f"Thresholds: {pipeline.CONFIDENT_INLIERS} RANSAC inliers, {pipeline.RIVAL_MARGIN:g}× "
            f"the best other transform's.\n", lib.table(rows)]
     if args.fit:
         n, m, kept = lib.fit(rows)

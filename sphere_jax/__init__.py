@@ -119,10 +119,10 @@ def register(source, target, method=None, voxel="auto", radius="auto", n_keypoin
     ``method``: a name of :mod:`sphere_jax.features.registry` (default
     :data:`sphere_jax.align.DEFAULT_METHOD`, the shipped LEAD-PN; ``lead@compass``, ``sound``,
     ``fpfh``, ``shot``, ...); ``n_keypoints`` per cloud (default
-    :data:`sphere_jax.align.DEFAULT_KEYPOINTS`), described a random quarter, then half, then all
-    (``progressive``: stopping at the first share that registers with confidence).
-    ``voxel`` and ``radius`` default to a scale
-    chosen from the clouds (:func:`sphere_jax.align.auto_scale`). ``adapt``: minutes of
+    :data:`sphere_jax.registration.pipeline.DEFAULT_KEYPOINTS`), described a random quarter,
+    then half, then all (``progressive``: stopping at the first share that registers with
+    confidence). ``voxel`` and ``radius`` default to a scale chosen from the clouds
+    (:func:`sphere_jax.registration.scale.auto_scale`). ``adapt``: minutes of
     adaptation of the method's networks to these two scans first, without labels (kept in
     ``adapt_workdir``; two networks adapt side by side in processes of their own, so a script
     calls this under ``if __name__ == "__main__":``). ``limits``: ``min_inliers``,
@@ -130,14 +130,16 @@ def register(source, target, method=None, voxel="auto", radius="auto", n_keypoin
     :func:`sphere_jax.align.register`.
 
     Returns:
-      :class:`sphere_jax.align.Registration`: ``transform`` (4×4, ``p_target = T p_source``),
-      ``inliers``, ``matches``, ``fitness``, ``rmse``, the ``voxel`` and ``radius`` used and the
-      ``seconds`` of each stage, the ``keypoints`` described; ``.summary()`` prints them.
+      :class:`sphere_jax.registration.pipeline.Registration`: ``transform`` (4×4,
+      ``p_target = T p_source``), ``inliers``, ``matches``, ``fitness``, ``rmse``, the
+      ``voxel`` and ``radius`` used and the ``seconds`` of each stage, the ``keypoints``
+      described; ``.summary()`` prints them.
     """
     from sphere_jax import align
+    from sphere_jax.registration import pipeline
     # None, not any false value, means the default: n_keypoints=0 is refused by align.
     method = align.DEFAULT_METHOD if method is None else method
-    n_keypoints = align.DEFAULT_KEYPOINTS if n_keypoints is None else n_keypoints
+    n_keypoints = pipeline.DEFAULT_KEYPOINTS if n_keypoints is None else n_keypoints
     return align.register(source, target, method, voxel, radius, n_keypoints, seed, bundle,
                           icp, adapt=adapt, adapt_workdir=adapt_workdir,
                           progressive=progressive, **limits)

@@ -16,6 +16,7 @@ from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
 from sphere_jax.features import registry
 from sphere_jax.bundles import whitening
+from sphere_jax.registration import pipeline, scale
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +34,7 @@ def test_register_real_fragments_at_any_scale(pair, scale):
     rre, rte = registration.rre_rte(result.transform, t_gt)
     assert rre < 5.0 and rte < 0.10 * scale, (rre, rte, result.summary())
     # Auto scale follows the unit exactly; on 3DMatch fragments it is their 2 cm grid.
-    assert result.voxel == pytest.approx(scale * align.auto_scale(src, dst)[0], rel=1e-4)
+    assert result.voxel == pytest.approx(scale * scale.auto_scale(src, dst)[0], rel=1e-4)
     if paths.real_data_root():
         assert result.voxel == pytest.approx(0.02 * scale, rel=0.15)
     assert result.radius == pytest.approx(15 * result.voxel)
@@ -53,11 +54,11 @@ def test_register_with_the_pair_vote(pair):
 def test_auto_scale_follows_extent_and_spacing():
     rng = np.random.default_rng(0)
     wall = np.c_[rng.uniform(0, 2.1, 200_000), rng.uniform(0, 2.1, 200_000), np.zeros(200_000)]
-    voxel, radius = align.auto_scale(wall, wall)
+    voxel, radius = scale.auto_scale(wall, wall)
     assert voxel == pytest.approx(0.02, rel=0.05) and radius == pytest.approx(0.3, rel=0.05)
     sparse = wall[:2000]                     # spacing ≈ 2.4 cm > 2 cm: the scan's own spacing
-    voxel, _ = align.auto_scale(sparse, sparse)
-    assert voxel == pytest.approx(align.point_spacing(sparse)) and voxel > 0.02
+    voxel, _ = scale.auto_scale(sparse, sparse)
+    assert voxel == pytest.approx(scale.point_spacing(sparse)) and voxel > 0.02
     with pytest.raises(sphere_jax.SphereJaxError, match="method must be one of"):
         sphere_jax.register(wall, wall, method="orb")
     with pytest.raises(sphere_jax.SphereJaxError, match="voxel must be a positive"):
@@ -110,15 +111,15 @@ def test_a_share_of_the_keypoints_suffices_when_it_registers_with_confidence(
     a single pass over all of them does."""
     (src, dst), t_gt = pair
     kw = dict(method="fpfh", n_keypoints=4000)
-    monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10)
+    monkeypatch.setattr(pipeline, "CONFIDENT_INLIERS", 10)
     quarter = sphere_jax.register(src, dst, **kw)
     assert quarter.ok and quarter.keypoints == ((1000, 4000), (1000, 4000)), quarter.summary()
     assert "keypoints described 1000 of 4000, 1000 of 4000" in quarter.summary()
-    monkeypatch.setattr(align, "CONFIDENT_INLIERS", quarter.inliers + 1)
+    monkeypatch.setattr(pipeline, "CONFIDENT_INLIERS", quarter.inliers + 1)
     later = sphere_jax.register(src, dst, **kw)
     assert later.keypoints[0] in ((2000, 4000), (4000, 4000))
     assert later.confident or later.keypoints[0] == (4000, 4000)
-    monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10 ** 9)
+    monkeypatch.setattr(pipeline, "CONFIDENT_INLIERS", 10 ** 9)
     rest = sphere_jax.register(src, dst, **kw)
     whole = sphere_jax.register(src, dst, progressive=False, **kw)
     assert rest.keypoints == whole.keypoints == ((4000, 4000), (4000, 4000))
@@ -130,7 +131,7 @@ def test_a_share_of_the_keypoints_suffices_when_it_registers_with_confidence(
     assert set(rest.seconds) == set(whole.seconds)
     np.save(tmp_path / "src.npy", src)
     np.save(tmp_path / "dst.npy", dst)
-    monkeypatch.setattr(align, "CONFIDENT_INLIERS", 10)
+    monkeypatch.setattr(pipeline, "CONFIDENT_INLIERS", 10)
     register_cli.main([str(tmp_path / "src.npy"), str(tmp_path / "dst.npy"), "--method=fpfh",
                        "--keypoints=4000", "--no-progressive"])
     assert "keypoints described 4000 of 4000, 4000 of 4000" in capsys.readouterr().out
@@ -146,7 +147,7 @@ def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
     printed, said = capsys.readouterr()
     assert f"dst.npy: 7 of {len(dst) + 7} points have non-finite coordinates" in said
     assert "p_target = T · p_source" in printed
-    assert f"voxel {align.auto_scale(src, dst)[0]:.4g}" in printed
+    assert f"voxel {scale.auto_scale(src, dst)[0]:.4g}" in printed
     t = np.loadtxt(out / "transform.txt")
     assert registration.rre_rte(t, t_gt)[0] < 10.0
     moved = io.read_ply(out / "source_registered.ply").points
@@ -193,14 +194,15 @@ def test_few_inliers_are_reported_unconfirmed(pair):
     result = sphere_jax.register(src, dst, method="fpfh", voxel=0.02, radius=0.3)
     assert result.ok, result.summary()
     assert result.rival >= 0
-    n = align.CONFIDENT_INLIERS
-    enough = dataclasses.replace(result, inliers=n, rival=int(n // align.RIVAL_MARGIN))
+    n = pipeline.CONFIDENT_INLIERS
+    enough = dataclasses.replace(result, inliers=n, rival=int(n // pipeline.RIVAL_MARGIN))
     assert enough.confident and enough.summary().startswith("registered\n"), enough.summary()
     few = dataclasses.replace(result, inliers=n - 1, rival=0)
     assert few.ok and not few.confident
     assert few.summary().startswith(f"registered, unconfirmed: {n - 1} "
                                     "RANSAC inliers"), few.summary()
-    rivalled = dataclasses.replace(result, inliers=2 * n, rival=int(2 * n / align.RIVAL_MARGIN) + 1)
+    rivalled = dataclasses.replace(result, inliers=2 * n,
+                                   rival=int(2 * n / pipeline.RIVAL_MARGIN) + 1)
     assert rivalled.ok and not rivalled.confident
     assert rivalled.summary().startswith(f"registered, unconfirmed: {2 * n} RANSAC inliers "
                                          f"against {rivalled.rival} for another transform"), \
@@ -245,12 +247,13 @@ def test_register_with_adapt_keeps_the_better_of_the_two_results(monkeypatch, ad
     success over a failure, then the one with more RANSAC inliers (a tie: the adapted)."""
     registered = []
 
-    def fake_match(src, dst, method, bundles, **kwargs):
+    def fake_match(src, dst, method, bundles, settings, watch):
         adapted = bundles["lead"] == "adapted lead"
         inliers = adapted_inliers if adapted else 15
-        result = align.Registration(np.diag([1.0, 1, 1, 1]) * (2 if adapted else 1), inliers or 8,
-                                    500, 0.4, 0.02, 0.02, 0.3, method, kwargs["seconds"],
-                                    "" if inliers else "RANSAC found no consensus")
+        result = pipeline.Registration(np.diag([1.0, 1, 1, 1]) * (2 if adapted else 1),
+                                       inliers or 8, 500, 0.4, 0.02, 0.02, 0.3, method,
+                                       watch.seconds,
+                                       "" if inliers else "RANSAC found no consensus")
         registered.append(adapted)
         return result
 

@@ -185,7 +185,7 @@ def measure(method, keypoints):
             "others_cpu": None if watch.others is None else round(watch.others, 3),
             "gflop": gflop, "peak_rss_gb": round(rss_gb, 2), "register_s": round(register_s, 1),
             "register_ok": result.ok,
-            # register describes a share of the keypoints first (align.PROGRESSIVE_SHARES)
+            # register describes a share of the keypoints first (pipeline.PROGRESSIVE_SHARES)
             "register_described": [d for d, _ in result.keypoints],
             "register_stages": {"load": round(load_s, 2),
                                 **{k: round(v, 2) for k, v in result.seconds.items()}}}

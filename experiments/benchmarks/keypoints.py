@@ -2,14 +2,15 @@
 
 On the 27 redkitchen pairs (14 3DMatch, 13 3DLoMatch; real scans only), for one method
 (``--only``, default LEAD-PN): :func:`sphere_jax.align.register` with all keypoints at once at
-each share of ``--keypoints`` in :data:`~sphere_jax.align.PROGRESSIVE_SHARES` (a quarter, half
-and all; ``progressive=False`` each: a random share of a random draw is a random draw), each
-pair scored against its ground truth (RRE < 15°, RTE < 0.3 m). One record per pair: whether
-each registration succeeded (``ok``), was right, its RANSAC inliers, mutual matches, ICP
+each share of ``--keypoints`` in
+:data:`~sphere_jax.registration.pipeline.PROGRESSIVE_SHARES` (a quarter, half and all;
+``progressive=False`` each: a random share of a random draw is a random draw), each pair
+scored against its ground truth (RRE < 15°, RTE < 0.3 m). One record per pair: whether each
+registration succeeded (``ok``), was right, its RANSAC inliers, mutual matches, ICP
 fitness and seconds, and what ``progressive=True`` returns — the first share's result that is
-``ok`` with at least :data:`~sphere_jax.align.CONFIDENT_INLIERS` inliers, else the whole one —
-with its seconds: the stopping share's, plus the matching, RANSAC and ICP of the shares before
-it (``register`` describes each keypoint once). The table is per benchmark.
+``confident`` (:attr:`~sphere_jax.registration.pipeline.Registration.confident`), else the
+whole one — with its seconds: the stopping share's, plus the matching, RANSAC and ICP of the
+shares before it (``register`` describes each keypoint once). The table is per benchmark.
 """
 from __future__ import annotations
 
@@ -36,10 +37,10 @@ def pair_sets():
 
 
 def shares(keypoints):
-    """The keypoint counts ``register`` describes in turn (:data:`~sphere_jax.align.
-    PROGRESSIVE_SHARES` of ``keypoints``)."""
-    from sphere_jax import align
-    return align.share_counts(keypoints)
+    """The keypoint counts ``register`` describes in turn
+    (:data:`~sphere_jax.registration.pipeline.PROGRESSIVE_SHARES` of ``keypoints``)."""
+    from sphere_jax.registration import pipeline
+    return pipeline.share_counts(keypoints)
 
 
 def pair_record(method, source, target, t_gt, keypoints):

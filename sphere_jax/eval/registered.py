@@ -5,9 +5,9 @@ keypoints, shipped bundles), each result sorted by status — ``registered`` (co
 registration's support radius (:func:`sphere_jax.eval.registration.registered`).
 
 :func:`fit` chooses the two thresholds of the status (RANSAC inliers and their margin over the
-best other transform, :data:`sphere_jax.align.CONFIDENT_INLIERS` and
-:data:`~sphere_jax.align.RIVAL_MARGIN`) on rows of validation pairs; the evaluation pairs only
-report the chosen ones.
+best other transform, :data:`sphere_jax.registration.pipeline.CONFIDENT_INLIERS` and
+:data:`~sphere_jax.registration.pipeline.RIVAL_MARGIN`) on rows of validation pairs; the
+evaluation pairs only report the chosen ones.
 """
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from sphere_jax import align
+from sphere_jax.registration import pipeline
 from sphere_jax.eval.registration import registered, rre_rte
 
 FIELDS = ("set", "i", "j", "method", "status", "right", "inliers", "rival", "matches",
@@ -25,7 +26,7 @@ FIELDS = ("set", "i", "j", "method", "status", "right", "inliers", "rival", "mat
 STATUSES = ("registered", "unconfirmed", "failed")
 
 
-def status(reg: align.Registration) -> str:
+def status(reg: pipeline.Registration) -> str:
     return "failed" if not reg.ok else "registered" if reg.confident else "unconfirmed"
 
 
