@@ -15,49 +15,21 @@ from sphere_jax.training import loop
 
 # Without a step count, a time budget decides: the steps are capped by this.
 MAX_STEPS = 1_000_000
-# The validation loss is measured on EVAL_PATCHES held-back patches of the scans, every
-# EVAL_EVERY steps. On 64, Compass's mean angle (a count of frames that flip, mostly) swung
-# 0.17-0.38 between evaluations on the bunny's scans, and the rule below stopped at its grace
-# on a lucky early best: 200 steps of a 10-minute budget, bunny repeatability 0.296 against
-# 0.408 for the whole budget. On 512 it still moves by about 0.03 (the weights themselves
-# jitter) but falls steadily, 0.34 at step 50 to 0.20 at 1350, and nothing stops it early.
-# An adaptation stops once the loss has not improved for PATIENCE evaluations and for as many
-# as it took to reach its best (GROWTH 1: a late best earns as long again) — but not within
-# GRACE evaluations: the fresh optimiser first raises the loss, and LEAD on the bunny's scans
-# beat its start weights only at step 150 (with no grace it stopped at step 75 and kept them),
-# LEAD-PN on LiDAR rescans of redkitchen only at step 250 (with a grace of 4 it stopped at
-# step 200 and kept them; run for its 10 minutes it went on to 0.0156 from 0.0163 at step
-# 597, and its inlier ratio on those scans' 14 pairs rose from 0.207 to 0.258).
+# Why these settings, with the measurements that chose them: docs/training.md ("How the
+# adaptation's settings were chosen").
+# The loss on EVAL_PATCHES held-back patches, every EVAL_EVERY steps: fewer patches made
+# Compass's mean angle (mostly a count of frames that flip) swing enough to stop on a lucky
+# early best. A run stops once the loss has not improved for PATIENCE evaluations nor for as
+# many as its best took (GROWTH 1), never within GRACE: a fresh optimiser first loses ground.
 PATIENCE, GROWTH, EVAL_EVERY, GRACE = 3, 1.0, 50, 6
 EVAL_PATCHES = 512
-# Adam starts afresh, so its first steps move every weight by about the learning rate: at the
-# bundles' peak 1e-3 that wrecked them (measured on the bunny's scans: LEAD-PN's validation
-# Chamfer 0.022 -> 2.2 after 25 steps, LEAD's 0.019 -> 0.16), and the adapted LEAD ended with
-# 15 % fewer inliers. Adaptation ramps up over WARMUP steps to a tenth of the bundle's rate.
-# Neither side of it did better on the bunny's scans: Compass at 3e-4 gave LEAD(Compass) an
-# inlier ratio of 0.095 against 0.096 at 1e-4, LEAD at 1e-5 (with batch moments, below) still
-# never beat its start weights; over 1500 steps validated on 512 patches, Compass at 3e-4
-# reached its best angle (0.209) at step 500 and lost it (0.25-0.29 after), while at 1e-4 it
-# went on to 0.199 at step 1350.
+# Adam starts afresh: at the bundle's full rate its first steps wreck a trained network, so the
+# rate ramps up over WARMUP steps to a tenth of the bundle's.
 RATE_FRACTION, WARMUP = 0.1, 25
-# The autoencoders adapt with batch norm frozen (config.train.frozen_batch_norm): fine-tuned as
-# they are used, normalised by the bundle's running moments, which they keep. Trained with
-# each batch's moments instead, they fit another function than the one evaluated. On the
-# bunny's scans, validated on 512 patches: LEAD-PN's Chamfer rose 0.0134 -> 0.0218 in 50 steps
-# and never came back below its start (the start weights were kept); the running moments
-# alone moved it to 0.0174 in 100 steps (learning rate 1e-9), and batch moments with the
-# running ones frozen made it 0.051. Frozen, it falls to 0.0116 in 200 steps; LEAD's 0.0196
-# to 0.0127 in 200 (with batch moments: 0.0172 at step 200, 0.0151 at its best, step 450).
-# Compass keeps batch moments: frozen, its validation angle fell more slowly (0.293 against
-# 0.260 at step 300; evaluations move by about 0.03). SOUND, not measured, keeps them too.
+# The autoencoders adapt as they are used, normalised by the bundle's running moments: with
+# each batch's moments they fit another function than the one evaluated. Compass keeps batch
+# moments, with which its validation angle fell faster.
 FROZEN_BATCH_NORM = ("lead", "lead_pn")
-# Copies made like a second scan's (a second draw of the support, 1 % jitter) did not help
-# Compass on the bunny's scans (1500 steps: repeatability 0.382 against 0.387, LEAD(Compass)
-# inlier ratio 0.116 against 0.115): adaptation makes its copies as the bundle's training did.
-# Shipping a moving average of the weights (decay 0.99, from the bundle's) instead of the best
-# evaluation's gave the same result: LEAD(Compass) inlier ratio on the bunny's pairs 0.112
-# against 0.113 (a Compass trained on the rooms alone, validated on 64 patches).
-
 
 def data_at_scale(config, voxel, radius):
     """``config.data`` overrides for scans at another scale: ``voxel`` and ``radius`` in the
