@@ -7,9 +7,9 @@ and ``before_after.png``. ``--voxel`` and ``--radius`` default to ``auto``: chos
 clouds so that a support holds as many points as at training time (:mod:`sphere_jax.align`),
 and printed. A registration that does not succeed (too few points, no mutual matches, no
 RANSAC consensus, ICP fitness below ``--min-fitness``) prints ``FAILED: <reason>`` and exits
-with status 3; one that succeeds with fewer than 40 RANSAC inliers (``pipeline.CONFIDENT_INLIERS``)
-prints ``registered, unconfirmed``: on the benchmark's room scans wrong registrations had up to
-29.
+with status 3; one that succeeds without confidence (fewer than
+``pipeline.CONFIDENT_INLIERS`` RANSAC inliers, or fewer than ``pipeline.RIVAL_MARGIN`` times the
+best other transform's) prints ``registered, unconfirmed`` and why (docs/usage.md).
 
     python -m experiments.register a.ply b.ply --method=fpfh --voxel=0.05 --out=runs/ab
     python -m experiments.register a.ply b.ply --method=lead@compass

@@ -23,17 +23,16 @@ from sphere_jax.registration.matching import mutual_matches
 # Per cloud: the fewest that keep LEAD-PN's registration recall on the 27 redkitchen pairs
 # (5000: 23/27, 2500: 19/27, 1000: 19/27; the low-overlap pairs gain, docs/performance.md).
 DEFAULT_KEYPOINTS = 5000
-# On the 27 redkitchen pairs and LiDAR rescans of them, with every learned and hand-crafted
-# method, no registration from a quarter or half of the keypoints with CONFIDENT_INLIERS was
-# wrong (wrong ones had at most 18; docs/performance.md, docs/usage.md).
+# A result is registered (confident) with CONFIDENT_INLIERS RANSAC inliers and RIVAL_MARGIN
+# times those of the best other transform among the matches it leaves unexplained
+# (estimation.rival_consensus): inliers alone are evidence, not proof (LEAD-PN registered a
+# LiDAR rescan pair 92 degrees off with 41). Both were chosen by
+# python -m experiments.registered --fit on validation pairs of no evaluation scene (stairs,
+# shelf-bin, held-out synthetic rooms; docs/usage.md): the fewest that call no wrong result
+# there registered, keeping the most right ones.
 PROGRESSIVE_SHARES = (0.25, 0.5, 1.0)
-CONFIDENT_INLIERS = 40
-# ... and RIVAL_MARGIN times the consensus of the best other transform among the matches it
-# leaves unexplained (estimation.rival_consensus): inliers alone are evidence, not proof
-# (LEAD-PN registered a LiDAR rescan pair 92 degrees off with 41, register put the bunny's top3
-# onto bun180 flipped with 70). Chosen on validation pairs of no evaluation scene by
-# python -m experiments.registered --fit (docs/usage.md).
-RIVAL_MARGIN = 2.0
+CONFIDENT_INLIERS = 50
+RIVAL_MARGIN = 2.25
 
 # Below these a registration is reported as failed, not as a result.
 MIN_POINTS = 10          # voxelised points per cloud
@@ -102,7 +101,7 @@ class Registration:
         """Why a result that succeeded is unconfirmed ('' when it is not)."""
         if self.inliers < CONFIDENT_INLIERS:
             return (f"{self.inliers} RANSAC inliers, fewer than the {CONFIDENT_INLIERS} below "
-                    f"which registrations of the redkitchen pairs were sometimes wrong")
+                    f"which registrations of the validation pairs were sometimes wrong")
         if self.inliers < RIVAL_MARGIN * self.rival:
             return (f"{self.inliers} RANSAC inliers against {self.rival} for another "
                     f"transform, less than {RIVAL_MARGIN:g} times as many")
