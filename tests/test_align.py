@@ -16,7 +16,8 @@ from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
 from sphere_jax.features import registry
 from sphere_jax.bundles import whitening
-from sphere_jax.registration import pipeline, scale
+from sphere_jax.registration import pipeline
+from sphere_jax.registration import scale as scales
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +35,7 @@ def test_register_real_fragments_at_any_scale(pair, scale):
     rre, rte = registration.rre_rte(result.transform, t_gt)
     assert rre < 5.0 and rte < 0.10 * scale, (rre, rte, result.summary())
     # Auto scale follows the unit exactly; on 3DMatch fragments it is their 2 cm grid.
-    assert result.voxel == pytest.approx(scale * scale.auto_scale(src, dst)[0], rel=1e-4)
+    assert result.voxel == pytest.approx(scale * scales.auto_scale(src, dst)[0], rel=1e-4)
     if paths.real_data_root():
         assert result.voxel == pytest.approx(0.02 * scale, rel=0.15)
     assert result.radius == pytest.approx(15 * result.voxel)
@@ -54,11 +55,11 @@ def test_register_with_the_pair_vote(pair):
 def test_auto_scale_follows_extent_and_spacing():
     rng = np.random.default_rng(0)
     wall = np.c_[rng.uniform(0, 2.1, 200_000), rng.uniform(0, 2.1, 200_000), np.zeros(200_000)]
-    voxel, radius = scale.auto_scale(wall, wall)
+    voxel, radius = scales.auto_scale(wall, wall)
     assert voxel == pytest.approx(0.02, rel=0.05) and radius == pytest.approx(0.3, rel=0.05)
     sparse = wall[:2000]                     # spacing ≈ 2.4 cm > 2 cm: the scan's own spacing
-    voxel, _ = scale.auto_scale(sparse, sparse)
-    assert voxel == pytest.approx(scale.point_spacing(sparse)) and voxel > 0.02
+    voxel, _ = scales.auto_scale(sparse, sparse)
+    assert voxel == pytest.approx(scales.point_spacing(sparse)) and voxel > 0.02
     with pytest.raises(sphere_jax.SphereJaxError, match="method must be one of"):
         sphere_jax.register(wall, wall, method="orb")
     with pytest.raises(sphere_jax.SphereJaxError, match="voxel must be a positive"):
@@ -147,7 +148,7 @@ def test_command_line_writes_matrix_cloud_and_picture(pair, tmp_path, capsys):
     printed, said = capsys.readouterr()
     assert f"dst.npy: 7 of {len(dst) + 7} points have non-finite coordinates" in said
     assert "p_target = T · p_source" in printed
-    assert f"voxel {scale.auto_scale(src, dst)[0]:.4g}" in printed
+    assert f"voxel {scales.auto_scale(src, dst)[0]:.4g}" in printed
     t = np.loadtxt(out / "transform.txt")
     assert registration.rre_rte(t, t_gt)[0] < 10.0
     moved = io.read_ply(out / "source_registered.ply").points
