@@ -59,7 +59,7 @@ def main(argv=None):
     if args.voxel is not None and args.pack is None:
         parser.error("--voxel is the pack's voxel: give it with --pack")
     if args.scenes is not None and jobs:
-        parser.error(f"--scenes is for the default data, not {jobs[0]}")
+        parser.error("--scenes is for the default data, not --pack, --lidar or --validation")
     if args.validation is not None:
         from sphere_jax.data import validation
         if not args.out:

@@ -111,7 +111,8 @@ def test_an_unknown_scene_is_one_line_naming_the_scenes(tmp_path):
     (["experiments.make_data", "--scenes=0"],
      "make_data: error: argument --scenes: expected a positive integer, got '0'"),
     (["experiments.make_data", "--scenes=3", "--lidar=x"],
-     "make_data: error: --scenes is for the default data, not --pack or --lidar"),
+     "make_data: error: --scenes is for the default data, not --pack, --lidar or "
+     "--validation"),
     (["experiments.make_data", "--pack=/nonexistent"],
      "make_data: error: data root '/nonexistent' is neither"),
     (["experiments.model_card", "/nonexistent"], "model_card: error: bundle /nonexistent: "
