@@ -14,6 +14,7 @@ import os
 import re
 
 import numpy as np
+from sklearn.neighbors import KDTree
 
 from sphere_jax.data.readers import threedmatch
 
@@ -23,6 +24,13 @@ _FRAGMENT = re.compile(r"cloud_bin_(\d+)\.ply")
 def transform(points, t):
     """``points [N, 3]`` mapped by the 4×4 rigid transform ``t``."""
     return points @ t[:3, :3].T + t[:3, 3]
+
+
+def overlap(points_i, points_j, t_ij, voxel) -> float:
+    """Share of ``points_j`` (both on a ``voxel`` grid), moved by ``t_ij`` into i's frame, within
+    2 voxels of ``points_i``: a pair's overlap under its ground truth."""
+    d, _ = KDTree(points_i).query(transform(points_j, t_ij), k=1)
+    return float(np.mean(d[:, 0] < 2 * voxel))
 
 
 def relative(poses_Sx4x4, s, t):

@@ -13,11 +13,10 @@ import json
 import os
 
 import numpy as np
-from sklearn.neighbors import KDTree
 
 from sphere_jax import checks, files, workdirs
 from sphere_jax.data import fusion, patches
-from sphere_jax.data.poses import relative, transform
+from sphere_jax.data.poses import overlap, relative
 from sphere_jax.data.readers import io, rgbd, threedmatch
 
 # A pair: more than 10 % of one fragment lies on the other (2 voxels apart), the lower bound of
@@ -40,15 +39,6 @@ def sequence_folders(root):
     return found
 
 
-def overlap(points_i, points_j, t_ij, voxel=OVERLAP_VOXEL):
-    """Share of ``points_j`` (moved by ``t_ij`` into i's frame) within 2 voxels of
-    ``points_i``, both voxelised first."""
-    a = patches.voxel_downsample(points_i, voxel)
-    b = transform(patches.voxel_downsample(points_j, voxel), t_ij)
-    d, _ = KDTree(a).query(b, k=1)
-    return float(np.mean(d[:, 0] < 2 * voxel))
-
-
 def write_scene(root, out_dir, frames_per_fragment=25, stride=25, min_overlap=MIN_OVERLAP):
     """Fuse every sequence under ``root`` into fragments (runs of ``frames_per_fragment``
     frames every ``stride``), each in the frame of its run's first camera, and write them as
@@ -65,11 +55,12 @@ def write_scene(root, out_dir, frames_per_fragment=25, stride=25, min_overlap=MI
             poses.append(seq.poses[run[0]])
             sources.append({"sequence": os.path.abspath(folder), "frames": run})
     poses = np.stack(poses)
+    grid = [patches.voxel_downsample(c, OVERLAP_VOXEL) for c in clouds]
     transforms, overlaps = {}, {}
     for i in range(len(clouds)):
         for j in range(i + 1, len(clouds)):
             t = relative(poses, j, i)
-            r = overlap(clouds[i], clouds[j], t)
+            r = overlap(grid[i], grid[j], t, OVERLAP_VOXEL)
             if r > min_overlap:
                 transforms[(i, j)], overlaps[(i, j)] = t, r
     if not transforms:

@@ -16,12 +16,11 @@ import warnings
 from typing import Callable
 
 import numpy as np
-from sklearn.neighbors import KDTree
 from tqdm.auto import tqdm
 
 from sphere_jax import checks
 from sphere_jax.data import augment, patches, scan_roots
-from sphere_jax.data.poses import transform
+from sphere_jax.data.poses import overlap, transform
 from sphere_jax.data.readers import stanford, threedmatch
 from sphere_jax.registration.fragments import Fragment, fragment
 
@@ -67,8 +66,7 @@ def stanford_scans(conf_path, voxel, min_overlap=0.10) -> PairSet:
     for a, i in enumerate(scans.names):
         for j in scans.names[a + 1:]:
             t = scans.transform(i, j)
-            d, _ = KDTree(clouds[i]).query(transform(clouds[j], t), k=1)
-            if np.mean(d[:, 0] < 2 * voxel) > min_overlap:
+            if overlap(clouds[i], clouds[j], t, voxel) > min_overlap:
                 transforms[(i, j)] = t
     name = os.path.splitext(os.path.basename(str(conf_path)))[0]
     return PairSet(name, scans.names, transforms, lambda k: scans.cloud(k).points)

@@ -7,6 +7,7 @@ import numpy as np
 
 from sphere_jax.data import o3d_convert
 from sphere_jax.registration.matching import mutual_matches
+from sphere_jax.spherical import so3
 
 
 def kabsch(src, dst):
@@ -74,8 +75,7 @@ def rival_consensus(points_dst_Mx3, points_src_Mx3, t, max_distance=0.05, same_d
             return 0
         other, count = ransac_consensus(dst[left], src[left], max_distance, iterations,
                                         seed + k)
-        turn = np.clip((np.trace(other[:3, :3].T @ t[:3, :3]) - 1) / 2, -1.0, 1.0)
-        if (np.degrees(np.arccos(turn)) >= same_deg
+        if (np.degrees(so3.geodesic_distance_np(other[:3, :3], t[:3, :3])) >= same_deg
                 or np.linalg.norm(other[:3, 3] - t[:3, 3]) >= same_distance):
             return count
         left &= gap(other) >= max_distance

@@ -202,6 +202,7 @@ def register(src: Fragment, dst: Fragment, describe: Callable, settings: Setting
     described = [None, None]
     for upto in zip(*(share_counts(n, settings.progressive) for n in drawn)):
         done = [0 if d is None else len(d) for d in described]
+        # one stream for both scans: no core idles between them
         new = describe([_take(f, o[a:b]) for f, o, a, b in zip((src, dst), orders, done, upto)])
         described = [n if d is None else np.concatenate([d, n]) for d, n in zip(described, new)]
         watch.lap("descriptors")

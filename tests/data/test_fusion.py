@@ -6,18 +6,8 @@ import numpy as np
 import pytest
 from sklearn.neighbors import KDTree
 
-from sphere_jax import paths
 from sphere_jax.data import fusion, patch_source, scan_roots
-from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import io, rgbd
-
-
-@pytest.fixture(scope="module")
-def frames():
-    real = paths.real_data("rgbd", "3dmatch_toolbox", "rgbd-frames")
-    if real and os.path.isdir(real):
-        return real
-    return synthetic.default_root("objects")
 
 
 def test_each_frame_lies_on_its_fused_fragment(frames):

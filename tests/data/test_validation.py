@@ -1,23 +1,13 @@
 """Validation pairs fused from posed RGB-D frames: real Kinect frames (3DMatch toolbox) when
 present, else the embedded synthetic table-top frames (same layout)."""
 import json
-import os
 
 import numpy as np
 import pytest
 
-from sphere_jax import checks, paths
-from sphere_jax.data import validation
-from sphere_jax.data.generators import synthetic
+from sphere_jax import checks
+from sphere_jax.data import patches, poses, validation
 from sphere_jax.data.readers import io, rgbd, threedmatch
-
-
-@pytest.fixture(scope="module")
-def frames():
-    real = paths.real_data("rgbd", "3dmatch_toolbox", "rgbd-frames")
-    if real and os.path.isdir(real):
-        return real
-    return synthetic.default_root("objects")
 
 
 def test_pairs_follow_the_ground_truth_convention(frames, tmp_path):
@@ -29,10 +19,12 @@ def test_pairs_follow_the_ground_truth_convention(frames, tmp_path):
     assert summary["pairs"] == len(transforms) > 0
     assert count == len(summary["fragments"])
     overlaps = threedmatch.read_gt_overlap(str(tmp_path / "scene" / "gt_overlap.log"))
-    cloud = lambda k: io.read_points(str(tmp_path / "scene" / f"cloud_bin_{k}.ply")).points
+    voxel = validation.OVERLAP_VOXEL
+    cloud = lambda k: patches.voxel_downsample(
+        io.read_points(str(tmp_path / "scene" / f"cloud_bin_{k}.ply")).points, voxel)
     for (i, j), t in transforms.items():
-        right = validation.overlap(cloud(i), cloud(j), t)
-        turned = validation.overlap(cloud(i), cloud(j), np.linalg.inv(t))
+        right = poses.overlap(cloud(i), cloud(j), t, voxel)
+        turned = poses.overlap(cloud(i), cloud(j), np.linalg.inv(t), voxel)
         print(f"pair {i}-{j}: overlap {right:.2f}, under the inverse {turned:.2f}")
         assert right == pytest.approx(overlaps[(i, j)], abs=1e-3)
         assert right > validation.MIN_OVERLAP
