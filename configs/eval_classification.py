@@ -18,7 +18,7 @@ Compass frame turns with the shape (within 15°) and the AR accuracy on those an
 import ml_collections
 
 from configs import classify
-from sphere_jax import paths
+from sphere_jax.models import shipped
 
 CLASSIFIERS = {"pointnet": "pointnet", "compass+pointnet": "compass_pointnet",
                "compass_train_rotated": "compass_pointnet_rotated"}
@@ -31,7 +31,7 @@ def get_config(arg=None):
     c.compass_bundle = "compass_shapes"   # the shipped whole-shape Compass, or a bundle folder
     # Each method's classifier bundle; '': train one here with this config.
     c.classifiers = ml_collections.ConfigDict(
-        {m: (paths.shipped_bundle(name) if c.size == "mid" else "")
+        {m: (shipped.bundle_path(name) if c.size == "mid" else "")
          for m, name in CLASSIFIERS.items()})
     c.eval_rotation_seed = 0          # AR split: one seeded rotation per test shape
     c.rotate = False                  # no rotated variant of this benchmark (it has AR)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import ml_collections
 
 from sphere_jax import checks
-from sphere_jax.paths import shipped_bundle as shipped
+from sphere_jax.models import shipped
 
 SIZES = ("", "quick", "tiny")
 
@@ -30,9 +30,7 @@ def base(arg) -> ml_collections.ConfigDict:
     c.rotate = False          # the rotated variant: every scan turned by a seeded rotation
     c.methods = ""
     c.bundle = ""             # one bundle overriding the default of its kind
-    c.bundles = ml_collections.ConfigDict(dict(
-        lead=shipped("lead"), compass=shipped("compass"), lead_pn=shipped("lead_pn"),
-        sound=shipped("sound")))
+    c.bundles = ml_collections.ConfigDict(shipped.defaults())    # kind -> bundle folder
     c.chunk = ml_collections.config_dict.placeholder(int)    # None: each bundle's infer_chunk
     if size == "quick":
         c.data.update(n_keypoints=2500, max_pairs=8)

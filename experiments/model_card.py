@@ -23,11 +23,12 @@ def main(argv=None):
     args = parser.parse_args(argv)
     from sphere_jax import paths
     from sphere_jax.bundles import model_card
+    from sphere_jax.models import shipped
     if args.index == bool(args.bundle):
         parser.error("give a bundle folder or --index")
     with cli.refusals(arguments=True):          # it reads only the bundle it is given
         if args.index:
-            print(model_card.weights_index(paths.weights_root(), paths.SHIPPED))
+            print(model_card.weights_index(paths.weights_root(), shipped.SHIPPED))
         else:
             print(model_card.write(args.bundle, args.metrics, args.command))
 

@@ -17,9 +17,7 @@ import json
 import os
 
 from sphere_jax.eval import report
-
-LEARNED = ("lead", "lead_compass", "lead_pn", "sound")     # single-pass learned descriptors
-
+from sphere_jax.features import registry
 
 def _value(rows, method, column):
     row = rows.get(method)
@@ -36,7 +34,8 @@ def rows(match, lomatch, rotated, lrf_kitchen, lrf_bunny, lrf_kitchen_adapted=No
     kitchen, bunny = (report.read_means(d, "lrf_results") for d in (lrf_kitchen, lrf_bunny))
     adapted = [d and report.read_means(d, "lrf_results")
                for d in (lrf_kitchen_adapted, lrf_bunny_adapted)]
-    best = max((k for k in LEARNED if k in m), key=lambda k: _value(m, k, "inlier_ratio"))
+    learned = registry.keys("descriptor", learned=True)      # single-pass learned ones
+    best = max((k for k in learned if k in m), key=lambda k: _value(m, k, "inlier_ratio"))
     ir = lambda rows_, k: _value(rows_, k, "inlier_ratio")
     out = []
     shot, usc = ir(m, "shot"), ir(m, "usc")

@@ -14,8 +14,9 @@ import tempfile
 
 import numpy as np
 
-from sphere_jax import checks, paths
+from sphere_jax import checks
 from sphere_jax.features import registry
+from sphere_jax.models import shipped
 from sphere_jax.registration import pipeline
 from sphere_jax.registration.estimation import SCREEN_ITERATIONS, consensus
 from sphere_jax.registration.matching import mutual_matches
@@ -23,11 +24,6 @@ from sphere_jax.registration.pipeline import DEFAULT_KEYPOINTS, MIN_FITNESS, MIN
 from sphere_jax.registration.scale import auto_scale
 
 DEFAULT_METHOD = "lead_pn"                  # the best shipped learned descriptor (README)
-# The methods register takes, by key (:mod:`sphere_jax.features.registry`; grammar names such
-# as ``lead@compass`` resolve to them).
-LEARNED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and m.learned)
-HANDCRAFTED = tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and not m.learned)
-VOTED = registry.keys("voted")             # described again in a frame voted by a first pass
 
 
 def register(source, target, method=DEFAULT_METHOD, voxel="auto", radius="auto",
@@ -129,7 +125,7 @@ def method_bundles(method: registry.Method, bundle=None):
     a list or a comma-separated string) replacing the one of its kind;
     :class:`~sphere_jax.checks.InputError` when ``method`` needs no bundle of that kind or two
     are of one kind, so that a bundle given is never silently left unused."""
-    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
+    bundles = shipped.defaults()
     given = split_bundles(bundle)
     if given:
         from sphere_jax.bundles import inference, store
@@ -213,11 +209,11 @@ def _match(src, dst, method, bundles, settings: pipeline.Settings,
            watch: pipeline.Stopwatch) -> pipeline.Registration:
     """The pipeline on two prepared fragments with ``method``'s descriptors: described share by
     share, or, for the pair vote, described once more in the voted frames."""
-    from sphere_jax.features import methods, voted
-    if method not in VOTED:
+    from sphere_jax.features import methods
+    if registry.resolve(method).kind != "voted":     # else described again in a voted frame
         describe = methods.descriptor_of_many(method, settings.radius, bundles)
         return pipeline.register(src, dst, describe, settings, method, watch)
-    frames = voted.voted_frames(method, settings.radius, bundles)
+    frames = methods.voted_frames(method, settings.radius, bundles)
     agree = functools.partial(consensus, max_distance=settings.distance, seed=settings.seed)
     screen = functools.partial(agree, iterations=SCREEN_ITERATIONS)
     inputs, _ = frames.describe_pairs({"target": dst, "source": src}, [("target", "source")],

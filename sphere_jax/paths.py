@@ -5,7 +5,7 @@
 * the **embedded synthetic data** cache: ``$SPHERE_JAX_DATA``, else ``~/.cache/sphere_jax``
   (:func:`cache_root`; what goes in it is :mod:`sphere_jax.data.generators.synthetic`'s);
 * the **shipped bundles**: package data in ``sphere_jax/weights/`` (``$SPHERE_JAX_WEIGHTS``
-  replaces it; :func:`shipped_bundle`);
+  replaces it; which bundle is which: :mod:`sphere_jax.models.shipped`);
 * the **compiled programs** the commands keep (:mod:`sphere_jax.compile_cache`):
   ``$SPHERE_JAX_COMPILE_CACHE``, else ``~/.cache/sphere_jax/xla/<host>``
   (:func:`compile_cache_dir`).
@@ -16,7 +16,6 @@ import hashlib
 import os
 import platform
 
-from sphere_jax import checks
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -76,34 +75,6 @@ def weights_root():
     return os.path.normpath(os.environ.get("SPHERE_JAX_WEIGHTS")
                             or os.path.join(os.path.dirname(os.path.abspath(__file__)),
                                             "weights"))
-
-
-# The shipped bundles by name (a model kind, or a classifier's method): the evaluations'
-# defaults and the examples' bundles.
-SHIPPED = {"compass": "compass_mid", "lead": "lead_mid", "lead_pn": "lead_pn_mid",
-           "sound": "sound_mid", "compass_shapes": "compass_shapes_mid",
-           "pointnet": "pointnet_mid", "compass_pointnet": "compass_pointnet_mid",
-           "compass_pointnet_rotated": "compass_pointnet_rotated_mid"}
-# The config (``configs/<name>.py``) whose 'mid' size is each shipped bundle's whole recipe:
-# ``python -m experiments.train --config=<config>:mid`` trains it (tests/test_weights.py).
-RECIPES = {"compass": "compass", "lead": "lead", "lead_pn": "lead_pn", "sound": "sound",
-           "compass_shapes": "compass_shapes", "pointnet": "classify",
-           "compass_pointnet": "classify_compass",
-           "compass_pointnet_rotated": "classify_compass_rotated"}
-
-
-def shipped_bundle(name, required=False):
-    """The folder of shipped bundle ``name`` — a folder of ``sphere_jax/weights/``
-    or a model kind of :data:`SHIPPED` (``'sound'``); ``''`` when it is absent
-    (FileNotFoundError instead with ``required``)."""
-    name = SHIPPED.get(name, name)
-    path = os.path.join(weights_root(), name, "bundle")
-    if os.path.isfile(os.path.join(path, "config.json")):
-        return path
-    if required:
-        raise checks.MissingError(f"no shipped bundle {name!r} in {weights_root()} (the "
-                                  f"package's weights; $SPHERE_JAX_WEIGHTS replaces them)")
-    return ""
 
 
 def relative(path) -> str:

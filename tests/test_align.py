@@ -18,6 +18,7 @@ from sphere_jax.features import registry
 from sphere_jax.bundles import whitening
 from sphere_jax.registration import pipeline
 from sphere_jax.registration import scale as scales
+from sphere_jax.models import shipped
 
 
 @pytest.fixture(scope="module")
@@ -80,9 +81,9 @@ def test_several_bundles_replace_the_shipped_ones_of_their_kinds():
     """``bundle="A,B"`` (or a list): each replaces the shipped bundle of its kind; two of one
     kind, or one the method does not use, are refused before any work."""
     lead_compass = registry.resolve("lead@compass")
-    shipped = align.method_bundles(lead_compass)
+    defaults = align.method_bundles(lead_compass)
     for given in ("compass,lead", ["lead", "compass"], " compass , lead "):
-        assert align.method_bundles(lead_compass, given) == shipped
+        assert align.method_bundles(lead_compass, given) == defaults
     with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be one bundle per kind; "
                                                         "got 2 lead bundles"):
         align.method_bundles(lead_compass, "lead,lead")
@@ -297,12 +298,12 @@ def test_an_adapted_sound_keeps_its_bundles_whitening(pair, tmp_path):
     from sphere_jax.bundles import inference
     from sphere_jax.bundles import whitening
     (src, dst), _ = pair
-    out, note = align.adapted_bundles("sound", {"sound": paths.shipped_bundle("sound")},
+    out, note = align.adapted_bundles("sound", {"sound": shipped.bundle_path("sound")},
                                       src, dst, 0.03, 0.45, 0.05, str(tmp_path))
     statement = whitening.read_statement(out["sound"])["default"]
     assert statement["kept_from"].endswith("sound_mid/bundle") and "sound" in note
     kept = inference.load_bundle(out["sound"]).whitenings["default"]
-    shipped = inference.load_bundle("sound").whitenings["default"]
-    assert np.array_equal(kept.axes, shipped.axes) and np.array_equal(kept.mean, shipped.mean)
+    given = inference.load_bundle("sound").whitenings["default"]
+    assert np.array_equal(kept.axes, given.axes) and np.array_equal(kept.mean, given.mean)
     card = open(os.path.join(out["sound"], "MODEL_CARD.md")).read()
     assert "kept from `sphere_jax/weights/sound_mid/bundle`, fitted for its weights" in card

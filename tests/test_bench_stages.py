@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from experiments.benchmarks import stages
-from sphere_jax import paths
 from sphere_jax.bundles import inference
+from sphere_jax.models import shipped
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", stages.KINDS)
 def test_stages_chain_to_the_networks_output(kind):
-    bundle = inference.cached_bundle(paths.shipped_bundle(kind, required=True))
+    bundle = inference.cached_bundle(shipped.bundle_path(kind, required=True))
     rng = np.random.default_rng(0)
     x = (rng.normal(size=(4, bundle.config.data.n_points, 3)) * 0.4).astype(np.float32)
     frames = np.broadcast_to(np.eye(3, dtype=np.float32), (4, 3, 3))

@@ -13,7 +13,6 @@ import zipfile
 import numpy as np
 import pytest
 
-from sphere_jax import paths
 from sphere_jax.data import demo
 from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
@@ -75,7 +74,7 @@ def test_wheel_equals_the_checkout(tmp_path):
                           for d, _, fs in os.walk(weights) for f in fs]
     missing = [f for f in shipped if f.replace(os.sep, "/") not in names]
     assert not missing, f"the wheel lacks {len(missing)} bundle files, e.g. {missing[:3]}"
-    for name in paths.SHIPPED.values():
+    for name in (row.folder for row in shipped.SHIPPED.values()):
         assert f"sphere_jax/weights/{name}/bundle/config.json" in names, name
 
     python = _env_reusing_these_dependencies(tmp_path / "env", wheel)

@@ -11,6 +11,7 @@ import pytest
 from sphere_jax import paths
 from sphere_jax.bundles import store
 from sphere_jax.data import held_out, scan_roots
+from sphere_jax.models import shipped
 
 ROOT = paths.weights_root()
 BUNDLES = sorted(os.path.dirname(p) for p in
@@ -24,7 +25,7 @@ def _name(path):
 
 
 def test_every_shipped_kind_is_checked_here():
-    assert set(paths.SHIPPED.values()) <= {_name(p) for p in BUNDLES}
+    assert {row.folder for row in shipped.SHIPPED.values()} <= {_name(p) for p in BUNDLES}
 
 
 @pytest.mark.parametrize("path", BUNDLES, ids=_name)
@@ -45,13 +46,16 @@ def _comparable(config):
 
 
 def test_every_shipped_bundle_has_a_recipe():
-    assert set(paths.RECIPES) == set(paths.SHIPPED)
+    for name, row in shipped.SHIPPED.items():
+        assert os.path.isfile(os.path.join(paths.REPO, "configs", f"{row.recipe}.py")), name
+        config = store.read_config(shipped.bundle_path(name, required=True))
+        assert config.model == row.kind, name
 
 
-@pytest.mark.parametrize("name", sorted(paths.RECIPES))
+@pytest.mark.parametrize("name", sorted(shipped.SHIPPED))
 def test_shipped_bundle_is_what_its_command_trains(name):
     """``python -m experiments.train --config=RECIPE:mid`` reproduces the shipped bundle: its
     config (fields, data and schedule) is the command's config."""
-    shipped = store.read_config(paths.shipped_bundle(name, required=True))
-    recipe = importlib.import_module(f"configs.{paths.RECIPES[name]}").get_config("mid")
-    assert _comparable(shipped) == _comparable(recipe)
+    config = store.read_config(shipped.bundle_path(name, required=True))
+    recipe = importlib.import_module(f"configs.{shipped.SHIPPED[name].recipe}").get_config("mid")
+    assert _comparable(config) == _comparable(recipe)

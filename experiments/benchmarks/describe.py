@@ -132,13 +132,13 @@ def unrolled_gflop(jitted, *args):
 
 def _flops(method, chunk_patches):
     """GFLOP per patch of the networks ``method`` runs (None: no network)."""
-    from sphere_jax import paths
     from sphere_jax.bundles import inference
+    from sphere_jax.models import shipped
     if method not in NETWORKS:
         return None
     total = 0.0
     for kind, what in NETWORKS[method]:
-        b = inference.cached_bundle(paths.shipped_bundle(kind, required=True))
+        b = inference.cached_bundle(shipped.bundle_path(kind, required=True))
         x = chunk_patches[:, :b.config.data.n_points]
         if what == "orient":
             total += unrolled_gflop(b._orient_fn, x) / len(x)
@@ -164,12 +164,12 @@ def register_time(method, keypoints, files):
 
 def measure(method, keypoints):
     """The record of one method (run in a fresh process by :func:`run`)."""
-    from sphere_jax import paths
     from sphere_jax.eval import timing
     from sphere_jax.features import methods
+    from sphere_jax.models import shipped
     frag, files = fragments(keypoints)
     register_s, result, load_s = register_time(method, keypoints, files)
-    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "lead_pn", "sound")}
+    bundles = shipped.defaults()
     describe = methods.descriptor(method, 0.30, bundles)
     # A first pass over the same keypoints: compiled programs, and the one-time costs of a
     # first large call (a first SHOT pass took 0.89 ms per keypoint, the next 0.23).

@@ -14,6 +14,7 @@ from sphere_jax.data import scan_roots
 from sphere_jax.data.readers import threedmatch
 from sphere_jax.eval import pair_sets, registration
 from sphere_jax.features import methods as method_lib
+from sphere_jax.models import shipped
 
 
 def run(keypoints=5000, methods=("fpfh", "shot", "lead"), **_):
@@ -26,7 +27,7 @@ def run(keypoints=5000, methods=("fpfh", "shot", "lead"), **_):
     else:
         pair_set = pair_sets.find_pair_sets(scan_roots.default_scan_root())[0]
         pair = pair_set.pairs[0]
-    bundles = {k: paths.shipped_bundle(k) for k in ("lead", "compass", "sound")}
+    bundles = {k: shipped.bundle_path(k) for k in ("lead", "compass", "sound")}
     records, total = [], time.perf_counter()
 
     def stage(name, fn):

@@ -21,6 +21,7 @@ import jax
 
 from experiments.benchmarks import common
 from sphere_jax.parallel import DEFAULT_CHUNK
+from sphere_jax.models import shipped
 
 KINDS = ("compass", "lead", "sound")
 CHUNK = DEFAULT_CHUNK           # patches per call, as `describe` streams them
@@ -150,7 +151,6 @@ def whole_network(bundle, patches, frames):
 def run(repeats=5, only=None, **_):
     from experiments.benchmarks.describe import fragments, unrolled_gflop
     from experiments.benchmarks.layers import matmul_gflops
-    from sphere_jax import paths
     from sphere_jax.bundles import inference
     peak = matmul_gflops()
     frag, _ = fragments(4 * CHUNK)
@@ -158,7 +158,7 @@ def run(repeats=5, only=None, **_):
     for kind in KINDS:
         if only and only not in kind:
             continue
-        bundle = inference.cached_bundle(paths.shipped_bundle(kind, required=True))
+        bundle = inference.cached_bundle(shipped.bundle_path(kind, required=True))
         stream = bundle.supports(frag.points, frag.keypoints[:2 * CHUNK])
         stream.check("mask")                     # keypoints with too little support: left out
         x = np.asarray(stream.make(0, min(CHUNK, stream.n))[0], np.float32)

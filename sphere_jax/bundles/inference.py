@@ -20,14 +20,14 @@ import jax.numpy as jnp
 import ml_collections
 import numpy as np
 
-from sphere_jax import checks, models, paths
+from sphere_jax import checks, models
 from sphere_jax.bundles import store
 from sphere_jax.bundles import whitening as whitening_lib
 from sphere_jax.data import o3d_convert
 from sphere_jax.data import patches as patch_lib
 from sphere_jax.data.supports import (DRAW, MIN_SUPPORT, StreamChain, SupportStream,
                                       extract_unit_patches)
-from sphere_jax.models import flare
+from sphere_jax.models import flare, shipped
 from sphere_jax.parallel import DEFAULT_CHUNK, in_slices, run_chunked, stream_chunked
 
 FLARE_BATCH = jax.jit(jax.vmap(flare.flare))
@@ -264,15 +264,15 @@ def open3d_feature(desc_KxD):
 
 def bundle_path(name_or_path) -> str:
     """A bundle folder, or the shipped bundle of a model kind (``'lead'``, ``'compass'``,
-    ``'lead_pn'``, ``'sound'``, ``'compass_shapes'``; :data:`sphere_jax.paths.SHIPPED`)."""
+    ``'lead_pn'``, ``'sound'``, ``'compass_shapes'``; :data:`sphere_jax.models.shipped.SHIPPED`)."""
     if not isinstance(name_or_path, (str, os.PathLike)):
-        raise checks.InputError("bundle", f"a bundle folder or one of {', '.join(paths.SHIPPED)}",
+        raise checks.InputError("bundle", f"a bundle folder or one of {', '.join(shipped.SHIPPED)}",
                                 checks.shown(name_or_path))
     name = os.fspath(name_or_path)
-    if name in paths.SHIPPED and not os.path.isdir(name):
-        return paths.shipped_bundle(name, required=True)
+    if name in shipped.SHIPPED and not os.path.isdir(name):
+        return shipped.bundle_path(name, required=True)
     if os.sep not in name and not os.path.exists(name):     # a word: meant as a kind
-        raise checks.InputError("bundle", f"a bundle folder or one of {', '.join(paths.SHIPPED)}",
+        raise checks.InputError("bundle", f"a bundle folder or one of {', '.join(shipped.SHIPPED)}",
                                 f"{name!r}, which is neither")
     return name
 

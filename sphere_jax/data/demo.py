@@ -17,11 +17,6 @@ def real_data_label():
     return paths.relative(root) if root else "not found: the synthetic scans stand in for it"
 
 
-def bundle(name):
-    """Path of a shipped bundle, by model kind (``bundle('sound')``) or folder name."""
-    return paths.shipped_bundle(name, required=True)
-
-
 def fragment_pair():
     """``((src [N, 3], dst [M, 3]), T)`` with ``p_dst = T p_src``: 3DMatch redkitchen
     fragments 5 → 0, or the first pair of the synthetic rooms."""

@@ -23,7 +23,7 @@ import numpy as np
 from sphere_jax import training
 from sphere_jax.bundles import inference
 from sphere_jax.data.readers.io import atomic_write
-from sphere_jax.eval import registration, report
+from sphere_jax.eval import registration, report, tasks
 
 COLUMNS = ("variant", "description", "params", "train_s", "forward_ms", "relative_time",
            "fmr", "inlier_ratio", "n_correct", "final_loss")
@@ -147,3 +147,6 @@ def run(config, workdir, progress=True):
     report.write(workdir, "ablation", rows, COLUMNS, md)
     plot_pareto(rows, os.path.join(workdir, "ablation_pareto.png"), "LEAD ablation")
     return rows, md
+
+
+TASK = tasks.Task(run=run)

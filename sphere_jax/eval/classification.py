@@ -21,7 +21,7 @@ from sphere_jax import checks, files, training
 from sphere_jax.bundles import inference, model_card
 from sphere_jax.bundles import store
 from sphere_jax.data import oriented
-from sphere_jax.eval import report
+from sphere_jax.eval import report, tasks
 
 # method -> (orients by Compass, trains on turned shapes); each a recipe in configs/.
 METHODS = {"pointnet": (False, False),               # configs/classify.py
@@ -220,3 +220,6 @@ def write(workdir, rows, frame_rows, trained, n_test, rule):
         files.atomic_write(os.path.join(workdir, "frames.csv"),
                            report.to_csv(frame_rows, ("method",) + fcols))
     return report.write(workdir, "classification", rows, cols, md + "\n")
+
+
+TASK = tasks.Task(run=run, methods=lambda: tuple(METHODS), kept=kept, bundles=bundles)

@@ -23,7 +23,7 @@ from sphere_jax.bundles import inference
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import washington
 from sphere_jax.data.readers.washington import Sample
-from sphere_jax.eval import report
+from sphere_jax.eval import report, tasks
 
 PROTOCOLS = ("category", "instance_lso", "instance_acf")
 FEATURE_SETS = ("colour", "shape", "colour+shape")
@@ -159,3 +159,6 @@ def run(config, workdir, progress=True):
     report.write(workdir, "objects", rows, ("protocol", "features", "classifier", "accuracy"),
                  md)
     return rows, md
+
+
+TASK = tasks.Task(run=run)

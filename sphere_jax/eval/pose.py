@@ -21,7 +21,7 @@ from tqdm.auto import tqdm
 from sphere_jax.data import o3d_convert, patches
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
-from sphere_jax.eval import labelled, registration, report
+from sphere_jax.eval import labelled, registration, report, tasks
 from sphere_jax.eval.objects import hsv_histogram
 
 METHODS = ("ransac", "fgr")                 # the coarse registration (open3d)
@@ -233,3 +233,6 @@ def run(config, workdir, progress=True):
     md = f"# Pose pipeline ({len(test_frames)} test frames)\n\n{report.table(rows, columns)}\n"
     report.write(workdir, "pose", rows, columns, md)
     return rows, md
+
+
+TASK = tasks.Task(run=run, methods=lambda: METHODS)

@@ -27,9 +27,9 @@ from sphere_jax.eval.labelled import (ModelView, build_database, instance_label,
                                       make_fragment, project_box, split_frames, unit_rows)
 from sphere_jax.eval.saliency import salient_mask, spectral_residual
 from sphere_jax.features import methods as method_lib
+from sphere_jax.features import registry
 from sphere_jax.registration.estimation import kabsch
 
-METHODS = method_lib.DESCRIPTORS
 IOU_OK = 0.25
 
 
@@ -215,7 +215,7 @@ def run(config, workdir, progress=True):
         test_frames = test_frames[:d.max_frames]
     database = build_database(model_frames, config.leaf, d.voxel)
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, METHODS, bundles)
+    names = tasks.chosen_methods(config, registry.keys("descriptor"), bundles)
     describers = {m: method_lib.descriptor(m, d.radius, bundles, d.radius / 2, config.chunk)
                   for m in names}
     rows, curves = evaluate(test_frames, database, describers, config.leaf, d.voxel,
@@ -233,3 +233,6 @@ def run(config, workdir, progress=True):
     report.write(workdir, "recognition", rows, columns, md)
     report.plot_recognition(rows, curves, workdir)
     return rows, md
+
+
+TASK = tasks.Task(run=run, methods=lambda: registry.keys("descriptor"))

@@ -28,13 +28,12 @@ from tqdm.auto import tqdm
 from sphere_jax.eval import processes, report, resume, tasks, timing
 from sphere_jax.eval import pair_sets as scene_lib
 from sphere_jax.features import methods as method_lib
-from sphere_jax.features import voted
+from sphere_jax.features import registry
 from sphere_jax.registration.estimation import SCREEN_ITERATIONS, consensus, ransac
 from sphere_jax.registration.matching import mutual_matches
 from sphere_jax.registration.vote import HYPOTHESES, VotedFrames
 from sphere_jax.spherical import so3
 
-METHODS = method_lib.DESCRIPTORS + method_lib.VOTED + method_lib.GROUND_TRUTH
 
 TAU1, TAU2 = 0.10, 0.05
 RRE_OK_DEG, RTE_OK_M = 15.0, 0.30      # RTE_OK_M: 3DMatch's; runs pass their support radius
@@ -225,16 +224,16 @@ def fmr_curve(results: list[SceneResult], tau2_values, tau1=TAU1):
 
 def _describer(name, config, bundles):
     radius, chunk = config.data.radius, config.chunk
-    if name in method_lib.GROUND_TRUTH:
+    kind = registry.resolve(name).kind
+    if kind == "diagnostic":
         return method_lib.ground_truth_frames(name, radius, bundles, chunk)
-    if name in method_lib.VOTED:
-        return voted.voted_frames(name, radius, bundles, chunk,
+    if kind == "voted":
+        return method_lib.voted_frames(name, radius, bundles, chunk,
                                   hypotheses=config.get("vote_hypotheses", HYPOTHESES),
                                   box=config.get("vote_box", True))
     return method_lib.descriptor(name, radius, bundles, config.fpfh_radius, chunk)
 
 
-check_data = scene_lib.check_data          # the data root, before any work (tasks.run)
 
 
 def run(config, workdir, progress=True):
@@ -242,7 +241,7 @@ def run(config, workdir, progress=True):
     fmr_vs_tau2.png in ``workdir``. Under ``jax.distributed`` the scenes are split over the
     processes and process 0 writes the tables (:mod:`processes`)."""
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, METHODS, bundles)
+    names = tasks.chosen_methods(config, registry.keys(), bundles)
     describers = {m: _describer(m, config, bundles) for m in names}
     finished = resume.Finished(workdir, config, bundles, primary=jax.process_index() == 0)
     mine = [(k, evaluate_scene(s, describers, scene_lib.prepare_kwargs(config), config.tau1,
@@ -267,3 +266,6 @@ def run(config, workdir, progress=True):
     report.plot_fmr_curve(curve, config.tau2_curve, os.path.join(workdir, "fmr_vs_tau2.png"),
                           f"Feature-match recall vs τ2{variant}")
     return rows, md
+
+
+TASK = tasks.Task(run=run, methods=registry.keys, check_data=scene_lib.check_data)

@@ -20,10 +20,10 @@ from sphere_jax.bundles import inference, store
 from sphere_jax.eval import processes, report, resume, tasks
 from sphere_jax.eval import pair_sets as scene_lib
 from sphere_jax.features import methods as method_lib
+from sphere_jax.features import registry
 from sphere_jax.spherical import so3
 from sphere_jax.training import adaptation, checkpoints
 
-METHODS = method_lib.LRFS
 RHO = 0.97
 
 # How a run that adapts declares it in its title (publish's comparison strips it again).
@@ -153,7 +153,6 @@ def _set_aside_if_stale(folder, trained):
         print(f"{folder} adapted other weights than this run's bundle: moved to {aside}")
 
 
-check_data = scene_lib.check_data          # the data root, before any work (tasks.run)
 
 
 def run(config, workdir, progress=True):
@@ -161,7 +160,7 @@ def run(config, workdir, progress=True):
     and ``plots/<scene>_<i>_<j>_<method>.png`` in ``workdir`` (scenes split over the
     processes of a ``jax.distributed`` run, :mod:`processes`)."""
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, METHODS, bundles)
+    names = tasks.chosen_methods(config, tuple(registry.LRFS), bundles)
     os.makedirs(workdir, exist_ok=True)
     if config.adapt_steps:
         bundles = adapted_bundles(config, bundles, names, workdir, progress)
@@ -200,3 +199,7 @@ def run(config, workdir, progress=True):
                              report.titled(report.LRF_TABLES, rho=config.rho), "lrf_results",
                              f"LRF repeatability{variant}")
     return rows, md
+
+
+TASK = tasks.Task(run=run, methods=lambda: tuple(registry.LRFS),
+                  check_data=scene_lib.check_data)

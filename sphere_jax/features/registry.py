@@ -31,55 +31,84 @@ name                     key               what
 from __future__ import annotations
 
 import dataclasses
+from typing import Callable, Optional
 
 from sphere_jax import checks
+from sphere_jax.features import builders as b
+from sphere_jax.features import lrfs, voted
 
 
 @dataclasses.dataclass(frozen=True)
 class Method:
     """One descriptor × frame × procedure: its grammar ``name``, the ``key`` files use, the
-    bundle kinds it ``needs``, its table ``label`` and what it is (``kind``: ``descriptor``,
-    ``voted`` — registration only — or ``diagnostic`` — reads the ground truth)."""
+    bundle kinds it ``needs``, its table ``label``, what it is (``kind``: ``descriptor``,
+    ``voted`` — registration only — or ``diagnostic`` — reads the ground truth) and what
+    builds it (``build``, the contract of its kind in :mod:`~sphere_jax.features.builders`;
+    a voted one's in :mod:`~sphere_jax.features.voted`)."""
     name: str
     key: str
     needs: tuple[str, ...]
     label: str
     kind: str = "descriptor"
     aliases: tuple[str, ...] = ()       # other spellings: a descriptor's own frame named
+    build: Optional[Callable] = None
 
     @property
     def learned(self) -> bool:
         return bool(self.needs)
 
 
+@dataclasses.dataclass(frozen=True)
+class Lrf:
+    """A local reference frame: its ``key``, the bundle kinds it ``needs``, and ``build``
+    (``build(radius, bundles, chunk) -> orient(fragment, indices) -> [K, 3, 3]``)."""
+    key: str
+    needs: tuple[str, ...]
+    build: Callable
+
+
 METHODS = (
-    Method("fpfh", "fpfh", (), "FPFH"),
-    Method("shot", "shot", (), "SHOT", aliases=("shot@shot",)),
-    Method("spin", "spin", (), "Spin Images"),
-    Method("usc", "usc", (), "USC", aliases=("usc@shot",)),
-    Method("lead@flare", "lead", ("lead",), "LEAD (FLARE)"),
-    Method("lead@compass", "lead_compass", ("lead", "compass"), "LEAD (Compass)"),
-    Method("lead_pn@flare", "lead_pn", ("lead_pn",), "LEAD-PN (FLARE)"),
-    Method("sound", "sound", ("sound",), "SOUND"),
+    Method("fpfh", "fpfh", (), "FPFH", build=b.per_fragment(b.fpfh_of, "fpfh_radius")),
+    Method("shot", "shot", (), "SHOT", aliases=("shot@shot",), build=b.per_fragment(b.shot_of)),
+    Method("spin", "spin", (), "Spin Images", build=b.per_fragment(b.spin_of)),
+    Method("usc", "usc", (), "USC", aliases=("usc@shot",), build=b.per_fragment(b.usc_of)),
+    Method("lead@flare", "lead", ("lead",), "LEAD (FLARE)", build=b.network("lead")),
+    Method("lead@compass", "lead_compass", ("lead", "compass"), "LEAD (Compass)",
+           build=b.network_in_frames_of("lead", "compass")),
+    Method("lead_pn@flare", "lead_pn", ("lead_pn",), "LEAD-PN (FLARE)",
+           build=b.network("lead_pn")),
+    Method("sound", "sound", ("sound",), "SOUND", build=b.network("sound")),
     Method("lead@compass+vote", "lead_vote", ("lead", "compass"), "LEAD (Compass) + vote",
-           "voted"),
-    Method("shot+vote", "shot_vote", (), "SHOT + vote", "voted", ("shot@shot+vote",)),
-    Method("lead@gt", "lead_gt", ("lead",), "LEAD (ground-truth frames)", "diagnostic"),
-    Method("shot@gt", "shot_gt", (), "SHOT (ground-truth frames)", "diagnostic"),
+           "voted", build=voted.lead_vote),
+    Method("shot+vote", "shot_vote", (), "SHOT + vote", "voted", ("shot@shot+vote",),
+           build=voted.shot_vote),
+    Method("lead@gt", "lead_gt", ("lead",), "LEAD (ground-truth frames)", "diagnostic",
+           build=b.network_in_one_frame("lead")),
+    Method("shot@gt", "shot_gt", (), "SHOT (ground-truth frames)", "diagnostic",
+           build=b.shot_in_one_frame),
 )
 
-# Local reference frames: (key, bundle kinds needed).
-LRFS = {"flare": (), "shot": (), "toldi": (), "3dsn": (), "gframes": (),
-        "compass": ("compass",), "sound": ("sound",)}
+LRFS = {lrf.key: lrf for lrf in (
+    Lrf("flare", (), b.flare_lrf),
+    Lrf("shot", (), b.on_neighbourhoods(lrfs.shot_lrf)),
+    Lrf("toldi", (), b.on_neighbourhoods(lrfs.toldi_lrf)),
+    Lrf("3dsn", (), b.on_neighbourhoods(lrfs.threedsn_lrf)),
+    Lrf("gframes", (), b.on_neighbourhoods(lrfs.gframes_lrf, with_normals=True)),
+    Lrf("compass", ("compass",), b.network_lrf("compass")),
+    Lrf("sound", ("sound",), b.network_lrf("sound")),
+)}
 
-_BY_SPELLING = {s: m for m in METHODS for s in (m.name, m.key) + m.aliases}
+
+def _by_spelling() -> dict:
+    # Read from the table at each call: a test that adds a row (monkeypatch) sees it here.
+    return {s: m for m in METHODS for s in (m.name, m.key) + m.aliases}
 
 
 def resolve(name, kinds=("descriptor", "voted", "diagnostic"), argument="method") -> Method:
     """The :class:`Method` a grammar name or key spells (``lead@compass`` or
     ``lead_compass``), among those of ``kinds``; an unknown name is an error naming
     ``argument`` and the choices."""
-    method = _BY_SPELLING.get(str(name).strip().lower())
+    method = _by_spelling().get(str(name).strip().lower())
     if method is None or method.kind not in kinds:
         choices = [m.name for m in METHODS if m.kind in kinds]
         raise checks.InputError(argument, f"one of {', '.join(choices)} (or their keys: "
@@ -88,21 +117,23 @@ def resolve(name, kinds=("descriptor", "voted", "diagnostic"), argument="method"
     return method
 
 
-def keys(*kinds) -> tuple[str, ...]:
-    """The keys of the methods of ``kinds`` (all when none), in the table order."""
-    return tuple(m.key for m in METHODS if not kinds or m.kind in kinds)
+def keys(*kinds, learned=None) -> tuple[str, ...]:
+    """The keys of the methods of ``kinds`` (all when none), in the table order; with
+    ``learned`` True or False, only those that read a network or only those that do not."""
+    return tuple(m.key for m in METHODS if (not kinds or m.kind in kinds)
+                 and (learned is None or m.learned == learned))
 
 
 def spellings(*kinds) -> tuple[str, ...]:
     """Every accepted spelling of the methods of ``kinds``: grammar names, then keys."""
     chosen = [m for m in METHODS if not kinds or m.kind in kinds]
-    return tuple(dict.fromkeys([s for s, m in _BY_SPELLING.items() if m in chosen]))
+    return tuple(dict.fromkeys([s for s, m in _by_spelling().items() if m in chosen]))
 
 
 def needs(key_or_name) -> tuple[str, ...]:
     """Bundle kinds a method or LRF needs."""
     if key_or_name in LRFS:
-        return LRFS[key_or_name]
+        return LRFS[key_or_name].needs
     return resolve(key_or_name).needs
 
 

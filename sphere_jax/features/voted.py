@@ -1,21 +1,20 @@
 """The pair vote's two descriptors: ``lead_vote`` (LEAD matched once in Compass's frames, then
 turned spectrally into the voted frame) and ``shot_vote`` (SHOT in its LRF, binned again in the
-voted frame), as :class:`~sphere_jax.registration.vote.VotedFrames` (the vote itself)."""
+voted frame). Each builds ``(first, again)`` of :class:`~sphere_jax.registration.vote.VotedFrames`
+(the vote itself) from ``(radius, bundles, chunk, whiten)``."""
 from __future__ import annotations
 
 import jax
 import numpy as np
 
 from sphere_jax import parallel
-from sphere_jax.bundles import inference
-from sphere_jax.features import descriptors, lrfs, registry
-from sphere_jax.bundles import whitening
-from sphere_jax.features import methods as method_lib
+from sphere_jax.bundles import inference, whitening
+from sphere_jax.features import builders as method_lib
+from sphere_jax.features import descriptors, lrfs
 from sphere_jax.models import lead as lead_model
-from sphere_jax.registration.vote import HYPOTHESES, TOL_DEG, VotedFrames
 
 
-def _shot_vote(radius):
+def shot_vote(radius, bundles=None, chunk=None, whiten=True):
     def first(f):
         nb = method_lib.neighbourhoods(f, f.keypoints, radius)
         frames = lrfs.shot_lrf(nb)
@@ -34,7 +33,7 @@ def _shot_vote(radius):
     return first, again
 
 
-def _lead_vote(radius, bundles, chunk, whiten):
+def lead_vote(radius, bundles, chunk=None, whiten=True):
     lead = inference.cached_bundle(bundles["lead"])
     compass = inference.cached_bundle(bundles["compass"])
     turn = jax.jit(lead_model.canonical_descriptors)
@@ -76,21 +75,3 @@ def _lead_vote(radius, bundles, chunk, whiten):
             maps = turned(maps, method_lib.one_frame(rotation_3x3, len(maps)))
         return white(shared_white, maps)
     return first, again
-
-
-def voted_frames(name, radius, bundles=None, chunk=None, tol_deg=TOL_DEG,
-                 hypotheses=HYPOTHESES, box=True, whiten=True) -> VotedFrames:
-    """``lead@compass+vote`` or ``shot+vote`` (keys ``lead_vote``, ``shot_vote``) with supports of
-    ``radius`` metres; ``bundles`` maps lead and compass to bundle paths; ``hypotheses`` modes
-    of each pair's vote are tried, and with ``box`` the box turns of the strongest. With
-    ``whiten``, LEAD's maps are whitened as its bundle's statistics say (first pass: its
-    ``compass`` whitening; second: :func:`~sphere_jax.bundles.whitening.rotation_averaged`);
-    a bundle without a whitening matches raw maps."""
-    bundles = bundles or {}
-    name = registry.resolve(name, ("voted",), "name").key
-    if method_lib.bundles_needed([name], bundles):
-        raise ValueError(f"method {name!r} needs bundle(s) {method_lib.BUNDLE_OF[name]} in "
-                         f"'bundles'")
-    first, again = (_shot_vote(radius) if name == "shot_vote" else
-                    _lead_vote(radius, bundles, chunk, whiten))
-    return VotedFrames(first, again, tol_deg, hypotheses, box)

@@ -17,7 +17,7 @@ from tqdm.auto import tqdm
 from sphere_jax import checks, paths
 from sphere_jax.bundles import inference, model_card, store
 from sphere_jax.data import scan_roots
-from sphere_jax.features import methods
+from sphere_jax.features import builders
 from sphere_jax.bundles import whitening
 
 SCANS, KEYPOINTS = 12, 1500     # 18 000 keypoints: 35× LEAD's 512 dimensions
@@ -101,7 +101,7 @@ def fit_bundle(bundle_dir, compass=None, scans=SCANS, keypoints=KEYPOINTS, comma
     radius = float(model.config.data.radius)
     sources = {"default": None}
     for name, lrf in frame_bundles.items():
-        sources[name] = methods.frames_for(model, lrf, clouds, radius)
+        sources[name] = builders.frames_for(model, lrf, clouds, radius)
     fitted, statement, used = {}, {}, {}
     for name, frames in sources.items():
         # On supports drawn as training draws them, not as describing does: fitted on even

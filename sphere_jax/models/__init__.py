@@ -4,8 +4,9 @@ classifier.
 Each ``models/<kind>.py`` holds one model kind: its flax module, the NamedTuple of its outputs,
 its loss, what its batches need and how it orients or describes patches, gathered in a
 :class:`~sphere_jax.models.spec.ModelSpec`. The trainer (:mod:`sphere_jax.training`) and the
-inference API (:mod:`sphere_jax.api`) look the spec up by ``config.model``; adding a model is
-adding one file and one line here.
+inference API (:mod:`sphere_jax.bundles.inference`) look the spec up by ``config.model``;
+adding a model is adding one file and one line here. The bundles the package ships:
+:mod:`sphere_jax.models.shipped`.
 
 Models take patches normalised to the unit ball (local coordinates divided by the support
 radius) and compute their spherical signals themselves, so that the inference API and the

@@ -80,4 +80,4 @@ def describe(model, variables, patches, frames):
 
 
 SPEC = ModelSpec(kind="lead", module=Lead, outputs=LeadOut, loss=loss, describe=describe,
-                 describe_frames=True)
+                 describe_frames=True, frozen_batch_norm=True)

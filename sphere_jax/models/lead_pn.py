@@ -44,4 +44,5 @@ def describe(model, variables, patches, frames=None):
 # PointNet at inference goes patch by patch already (pointnet.inference_codes): slicing the
 # chunk as well made it 5-13 % slower.
 SPEC = ModelSpec(kind="lead_pn", module=LeadPN, outputs=LeadPNOut, loss=lead.loss,
-                 inputs=oriented, describe=describe, infer_slice=None)
+                 inputs=oriented, describe=describe, infer_slice=None,
+                 frozen_batch_norm=True)

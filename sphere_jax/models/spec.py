@@ -30,7 +30,8 @@ class ModelSpec:
 
     Attributes:
       kind: the name configs use (``config.model``).
-      module: the flax module; built as ``module(**config.model_kwargs)`` unless ``build``.
+      module: the flax module; built as ``module(**config.model_kwargs)`` unless ``build``;
+        it takes ``axis_name``, the data-parallel axis its batch norms average over.
       outputs: the NamedTuple its ``__call__`` returns.
       loss: its self-supervised (or supervised) loss, :data:`LossFn`.
       inputs: batch -> the array the network reads (default ``batch['patches']``).
@@ -39,6 +40,9 @@ class ModelSpec:
       labelled: trained on shape labels (batches of ``points`` and ``labels``).
       orient / describe: inference on unit patches (None: the kind does not do it).
       describe_frames: ``describe`` turns its output by LRFs (FLARE unless given).
+      frozen_batch_norm: adapting to new scans keeps the bundle's running moments (an
+        autoencoder fitted with each batch's moments fits another function than the one
+        it evaluates; :mod:`sphere_jax.training.adaptation`).
       build: config -> module, for modules that need more than ``model_kwargs``.
       infer_slice: patches per step inside one jitted call at inference
         (:func:`sphere_jax.parallel.in_slices`); None: the whole chunk in one step.
@@ -54,6 +58,7 @@ class ModelSpec:
     orient: Optional[OrientFn] = None
     describe: Optional[DescribeFn] = None
     describe_frames: bool = False
+    frozen_batch_norm: bool = False
     build: Optional[Callable[[Any], nn.Module]] = None
     # The spherical networks' spectra for a 256-patch chunk are 68-270 MB per layer, mapped
     # afresh on every call (350 page faults per patch for Compass); for 32 patches they stay
@@ -65,3 +70,13 @@ class ModelSpec:
         if self.build is not None:
             return self.build(config)
         return self.module(**dict(config.model_kwargs))
+
+    @property
+    def orients(self) -> bool:
+        """Gives local reference frames (an LRF model)."""
+        return self.orient is not None
+
+    @property
+    def describes(self) -> bool:
+        """Gives local descriptors."""
+        return self.describe is not None

@@ -26,10 +26,6 @@ EVAL_PATCHES = 512
 # Adam starts afresh: at the bundle's full rate its first steps wreck a trained network, so the
 # rate ramps up over WARMUP steps to a tenth of the bundle's.
 RATE_FRACTION, WARMUP = 0.1, 25
-# The autoencoders adapt as they are used, normalised by the bundle's running moments: with
-# each batch's moments they fit another function than the one evaluated. Compass keeps batch
-# moments, with which its validation angle fell faster.
-FROZEN_BATCH_NORM = ("lead", "lead_pn")
 
 def data_at_scale(config, voxel, radius):
     """``config.data`` overrides for scans at another scale: ``voxel`` and ``radius`` in the
@@ -86,7 +82,7 @@ def adapt(trained, data_root, steps, workdir, learning_rate=None, progress=True,
     config.train.update(schedule="warmup_cosine", warmup_steps=min(WARMUP, int(steps) - 1),
                         final_lr_fraction=1.0,       # after the warm-up, constant
                         learning_rate=RATE_FRACTION * float(config.train.learning_rate))
-    config.train.frozen_batch_norm = trained.kind in FROZEN_BATCH_NORM
+    config.train.frozen_batch_norm = models.spec(trained.kind).frozen_batch_norm
     config.train.time_budget_s = budget_s
     config.train.budget_ends = budget_ends     # the loop then shows no step total
     config.train.early_stop_patience = int(patience)

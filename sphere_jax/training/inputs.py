@@ -14,12 +14,13 @@ from sphere_jax.data.generators import synthetic
 ROTATED_COPIES = 8
 
 
-def check_roots(config):
+def check_roots(config, spec=None):
     """What can be refused in ``config.data.root`` before any data is read or made: an entry
     that does not exist, one that names an evaluation scene
-    (:class:`~sphere_jax.checks.ConfigError`)."""
+    (:class:`~sphere_jax.checks.ConfigError`). ``spec``: the model kind's, where the caller
+    has it."""
     d = config.data
-    if models.spec(config.model).labelled or d.get("shapes", False):
+    if (spec or models.spec(config.model)).labelled or d.get("shapes", False):
         return
     entries = scan_roots.root_entries(d.root)
     allow = bool(d.get("allow_evaluation_scenes", False))
@@ -37,15 +38,16 @@ def check_roots(config):
                                      "folders, 'embedded:N' or 'shared/<path>'", entry)
 
 
-def build_source(config, orient_shapes=None, progress=True):
+def build_source(config, orient_shapes=None, progress=True, spec=None, roots_checked=False):
     """The data of ``config.data``: a :class:`~sphere_jax.data.patch_source.PatchSource` of the
     training scans (refused where they hold an evaluation scene, unless
     ``data.allow_evaluation_scenes``) or a :class:`~sphere_jax.data.shape_source.ShapeSource` —
     for a classifier with ``config.orient_bundle``, its shapes in the frames
     ``orient_shapes`` gives them (:func:`check_orient`), each oriented once
-    (:mod:`sphere_jax.data.oriented`)."""
+    (:mod:`sphere_jax.data.oriented`). ``spec``: the model kind's, where the caller has it;
+    ``roots_checked``: :func:`check_roots` has passed already."""
     d = config.data
-    if models.spec(config.model).labelled or d.get("shapes", False):
+    if (spec or models.spec(config.model)).labelled or d.get("shapes", False):
         root = scan_roots.entry_path(d.root) if d.root else synthetic.default_root("modelnet")
         source = shape_source.ShapeSource(root, d.n_points, config.seed,
                                       d.get("holdout_every", shape_source.HOLDOUT_EVERY),
@@ -56,8 +58,8 @@ def build_source(config, orient_shapes=None, progress=True):
         copies = d.get("rotated_copies", ROTATED_COPIES) if d.get("rotate", False) else 0
         return oriented.oriented_source(source, orient_shapes, copies, config.seed, progress)
     allow = bool(d.get("allow_evaluation_scenes", False))
-    check_roots(config)              # the entries first (before an RGB-D sequence is fused),
-    # then every scan and its origin
+    if not roots_checked:            # the entries first (before an RGB-D sequence is fused),
+        check_roots(config, spec)    # then every scan and its origin
     groups = scan_roots.scan_groups(d.root, config.train.get("pack", ""))
     scans = [p for g in groups for p in g]
     held_out.check_training_scans(
@@ -80,12 +82,13 @@ def check_orient(config, orient_shapes):
             "experiments.train passes it)", config.orient_bundle)
 
 
-def get_batch(config, source, step, split="train"):
+def get_batch(config, source, step, split="train", spec=None):
     """Batch ``step`` of ``split`` (a function of the seed and the step alone: resumed and
     continued runs draw what the uninterrupted run would have). A classifier with
     ``config.orient_bundle`` reads shapes :func:`build_source` oriented already (turned at
-    random before, with ``data.rotate``)."""
-    spec, bs = models.spec(config.model), config.train.batch_size
+    random before, with ``data.rotate``). ``spec``: the model kind's, where the caller has
+    it."""
+    spec, bs = spec or models.spec(config.model), config.train.batch_size
     if not isinstance(source, shape_source.ShapeSource):
         added = warm_start.DATA_ADDED
         return source.batch(step, bs, split, copies=spec.copies, occlusion=config.data.occlusion,

@@ -35,10 +35,11 @@ from sphere_jax.training.inputs import build_source, check_orient, check_roots, 
 # Loss
 # ----------------------------------------------------------------------------------------------
 
-def loss_fn(config, model, variables, batch, rng, train=True):
+def loss_fn(config, model, variables, batch, rng, train=True, spec=None):
     """``(loss, (metrics, new batch_stats))`` for one batch; what the network reads and how its
-    outputs are scored is its kind's spec (:mod:`sphere_jax.models`)."""
-    spec = models.spec(config.model)
+    outputs are scored is its kind's ``spec`` (:mod:`sphere_jax.models`; looked up from
+    ``config.model`` unless given)."""
+    spec = spec or models.spec(config.model)
     x = spec.inputs(batch)
     rngs = {"dropout": rng}
     if train:
@@ -87,9 +88,9 @@ def training_model(config):
     return model.clone(**changes)
 
 
-def init_state(config, model, tx, example):
+def init_state(config, model, tx, example, spec=None):
     key = jax.random.PRNGKey(config.seed)
-    x = example[models.spec(config.model).input_key]
+    x = example[(spec or models.spec(config.model)).input_key]
     variables = jax.jit(functools.partial(model.init, train=False))(
         {"params": key, "dropout": key}, x)
     state = {"params": variables["params"], "batch_stats": variables.get("batch_stats", {}),
@@ -97,15 +98,17 @@ def init_state(config, model, tx, example):
     return state
 
 
-def make_steps(config, model, tx, mesh=None):
+def make_steps(config, model, tx, mesh=None, spec=None, schedule=None):
     """Jitted ``train_step(state, batch) -> (state, metrics)`` and ``eval_step(state, batch) ->
     metrics`` over ``mesh`` (:mod:`sphere_jax.parallel`; default one device): ``state``
     replicated, ``batch`` split on its first axis (:func:`parallel.shard_batch`). ``model``:
     :func:`training_model`'s, whose batch norms average over the mesh axis. ``tx``: the
     optimiser's direction (:func:`optimiser`); the step scales it by
-    :func:`learning_rate_schedule` at the state's step."""
+    :func:`learning_rate_schedule` at the state's step. ``spec`` and ``schedule``: the
+    config's, where the caller has them."""
     mesh = mesh if mesh is not None else parallel.make_mesh(1)
-    schedule = learning_rate_schedule(config.train)
+    spec = spec or models.spec(config.model)
+    schedule = schedule or learning_rate_schedule(config.train)
     rep, rows = P(), P(parallel.AXIS)
     # The outputs are replicated by construction (pmean'd gradients and metrics; batch
     # statistics from pmean'd moments). shard_map's replication typing would also ask every
@@ -122,7 +125,7 @@ def make_steps(config, model, tx, mesh=None):
 
         def f(p):
             return loss_fn(config, model, {"params": p, "batch_stats": batch_stats}, batch, rng,
-                           train=batch_moments)
+                           train=batch_moments, spec=spec)
 
         (_, (metrics, stats)), grads = jax.value_and_grad(f, has_aux=True)(params)
         return (jax.lax.pmean(grads, parallel.AXIS), jax.lax.pmean(metrics, parallel.AXIS),
@@ -141,7 +144,8 @@ def make_steps(config, model, tx, mesh=None):
 
     def local_metrics(params, batch_stats, batch):
         variables = {"params": params, "batch_stats": batch_stats}
-        metrics = loss_fn(config, model, variables, batch, jax.random.PRNGKey(0), train=False)
+        metrics = loss_fn(config, model, variables, batch, jax.random.PRNGKey(0), train=False,
+                          spec=spec)
         return jax.lax.pmean(metrics[1][0], parallel.AXIS)
 
     def eval_step(state, batch):
@@ -201,7 +205,7 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
     into the frames of ``config.orient_bundle``
     (:func:`sphere_jax.bundles.inference.shape_orienter`; required with it)."""
     checks.config_values(config)
-    models.spec(config.model)                           # an unknown kind, before any work
+    spec = models.spec(config.model)                    # an unknown kind, before any work
     for field in ("init_bundle", "finetune_bundle"):     # a resumed run reads neither, but a
         if config.train.get(field):                      # wrong path is still a typo to say
             store.read_config(config.train[field])
@@ -211,25 +215,28 @@ def train_and_evaluate(config: ml_collections.ConfigDict, workdir: str, progress
         config = ml_collections.ConfigDict(config.to_dict())
         config.train.started_from = store.variables_digest(
             store.read_variables(config.train.finetune_bundle))
-    learning_rate_schedule(config.train)                # so does a bad schedule
-    check_roots(config)                                 # so does a data root that is not there
+    schedule = learning_rate_schedule(config.train)     # so does a bad schedule
+    check_roots(config, spec)                           # so does a data root that is not there
     check_orient(config, orient_shapes)
     with workdirs.claimed(workdir, command, primary=jax.process_index() == 0):
-        return _train(config, workdir, progress, init_variables, command, orient_shapes)
+        return _train(config, spec, schedule, workdir, progress, init_variables, command,
+                      orient_shapes)
 
 
-def _train(config, workdir, progress, init_variables, command, orient_shapes):
+def _train(config, spec, schedule, workdir, progress, init_variables, command, orient_shapes):
+    """The loop of :func:`train_and_evaluate` on its checked ``config``, with the model kind's
+    ``spec`` and the learning-rate ``schedule`` resolved once."""
     checkpoints.claim_workdir(workdir, config)
-    source = build_source(config, orient_shapes, progress)
-    if models.spec(config.model).labelled:
+    source = build_source(config, orient_shapes, progress, spec=spec, roots_checked=True)
+    if spec.labelled:
         with config.unlocked():
             config.n_classes = len(source.classes)
     mesh = parallel.make_mesh(config.train.get("devices", 0) or None)
     parallel.check_batch_size(config.train.batch_size, mesh)
     model = training_model(config)
     tx = optimiser()
-    state = init_state(config, model, tx, get_batch(config, source, 0))
-    train_step, eval_step = make_steps(config, model, tx, mesh)
+    state = init_state(config, model, tx, get_batch(config, source, 0, spec=spec), spec)
+    train_step, eval_step = make_steps(config, model, tx, mesh, spec, schedule)
     mngr = checkpoints.checkpoint_manager(workdir, config)
     main_host = jax.process_index() == 0          # the one that logs
     metrics_path = os.path.join(workdir, "metrics.jsonl")
@@ -256,7 +263,7 @@ def _train(config, workdir, progress, init_variables, command, orient_shapes):
                       int(config.train.get("early_stop_grace", 0) or 0))
     fresh_finetune = init_variables is not None and start == 0 and mngr.latest_step() is None
     if plateau.patience and fresh_finetune:
-        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh))
+        before = dict(step=0, **evaluate(config, source, state, eval_step, mesh, spec))
         plateau.reached(before["val_loss"], state, 0)
         if main_host:
             with open(metrics_path, "a") as log:
@@ -269,7 +276,7 @@ def _train(config, workdir, progress, init_variables, command, orient_shapes):
     bar = tqdm(total=None if open_ended else config.train.steps, initial=start,
                disable=not (progress and main_host),
                desc=f"{config.model}:{config.get('size', '')}")
-    make = lambda step: parallel.shard_batch(get_batch(config, source, step), mesh)
+    make = lambda step: parallel.shard_batch(get_batch(config, source, step, spec=spec), mesh)
     with open(metrics_path, "a") as log, \
             Prefetch(make, range(start, config.train.steps)) as batches:
         for step, batch in batches:
@@ -287,7 +294,7 @@ def _train(config, workdir, progress, init_variables, command, orient_shapes):
                             data_wait_frac=round((batches.wait_s - wait_last) / (now - t_last), 4))
                 t_last, seen, wait_last = now, 0, batches.wait_s
                 if done % config.train.eval_every == 0 or final:
-                    last.update(evaluate(config, source, state, eval_step, mesh))
+                    last.update(evaluate(config, source, state, eval_step, mesh, spec))
                     final = plateau.reached(last["val_loss"], state, done) or final
                 if main_host:
                     log.write(json.dumps(last) + "\n")
@@ -344,8 +351,8 @@ class Plateau:
             self.since >= max(self.patience, self.relative * self.best_seen)
 
 
-def evaluate(config, source, state, eval_step, mesh):
+def evaluate(config, source, state, eval_step, mesh, spec=None):
     vals = [eval_step(state, parallel.shard_batch(
-        get_batch(config, source, 10_000_000 + k, "val"), mesh))
+        get_batch(config, source, 10_000_000 + k, "val", spec), mesh))
         for k in range(config.train.eval_batches)]
     return {f"val_{k}": float(np.mean([v[k] for v in vals])) for k in vals[0]}

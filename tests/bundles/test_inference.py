@@ -10,8 +10,9 @@ import pytest
 
 from configs import lead, sound
 import sphere_jax
-from sphere_jax import models, parallel, paths, training
+from sphere_jax import models, parallel, training
 from sphere_jax.bundles import inference
+from sphere_jax.models import shipped
 from tests import reference
 
 
@@ -38,9 +39,8 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
         inference.load_bundle(tmp_path)
     with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be a bundle folder or one"):
         inference.load_bundle(None)
-    from sphere_jax import paths
-    for name in paths.SHIPPED:                  # shipped bundles by name: the same folder
-        assert inference.bundle_path(name) == paths.shipped_bundle(name, required=True)
+    for name in shipped.SHIPPED:                  # shipped bundles by name: the same folder
+        assert inference.bundle_path(name) == shipped.bundle_path(name, required=True)
         kind = inference.load_bundle(name).kind
         assert kind == ("classify" if "pointnet" in name else name.replace("_shapes", ""))
     lead_config = lead.get_config("tiny")
@@ -265,7 +265,7 @@ def test_truncated_weights_name_the_bundle_and_leave_no_stray_reports(tmp_path, 
     import gc
     import shutil
     bad = tmp_path / "bundle"
-    shutil.copytree(paths.shipped_bundle("sound", required=True), bad)
+    shutil.copytree(shipped.bundle_path("sound", required=True), bad)
     data = max((p for p in (bad / "variables").rglob("*") if p.is_file()),
                key=lambda p: p.stat().st_size)
     data.write_bytes(data.read_bytes()[:64])

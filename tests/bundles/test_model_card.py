@@ -12,6 +12,7 @@ import pytest
 from configs import eval_registration, lead
 from experiments import publish, standing
 from sphere_jax import training
+from sphere_jax.models import shipped
 from sphere_jax.bundles import model_card, store
 from sphere_jax.eval import report, tasks
 
@@ -405,8 +406,9 @@ def test_the_weights_index_names_each_bundles_data_root_and_scan_count(tmp_path)
             "model": "compass", "data": {"root": root},
             "train": {"steps": 3, "batch_size": 2, "learning_rate": 1e-3}}),
             {"params": {"w": jnp.ones(1)}, "batch_stats": {}}, training_data=data)
-    index = open(model_card.weights_index(str(tmp_path), {"compass": "c",
-                                                          "compass_shapes": "s"})).read()
+    rows = {"compass": shipped.Shipped("c", "compass", "compass"),
+            "compass_shapes": shipped.Shipped("s", "compass", "compass_shapes")}
+    index = open(model_card.weights_index(str(tmp_path), rows)).read()
     assert "| 3 / 3 × 2 | `embedded:1,shared/x` (13 scans) |" in index
     assert "| `/shapes` (1 shape) |" in index
 

@@ -9,6 +9,7 @@ import pytest
 from configs import lead
 from sphere_jax import models, paths
 from sphere_jax.bundles import inference, store
+from sphere_jax.models import shipped
 from tests import reference
 
 
@@ -38,8 +39,8 @@ def test_save_load_round_trip_and_training_data(tmp_path):
 
 
 def test_shipped_bundles_state_what_they_were_trained_on():
-    for name in paths.SHIPPED:
-        data = store.read_training_data(paths.shipped_bundle(name, required=True))
+    for name in shipped.SHIPPED:
+        data = store.read_training_data(shipped.bundle_path(name, required=True))
         assert data["folders"], name
 
 

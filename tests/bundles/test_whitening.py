@@ -12,6 +12,7 @@ from sphere_jax.bundles import inference, model_card
 from sphere_jax.features import whitening_fit
 from sphere_jax.bundles import whitening
 from sphere_jax.spherical import so3, transforms
+from sphere_jax.models import shipped
 from tests import reference
 
 
@@ -159,9 +160,8 @@ def test_a_fitted_whitening_is_what_describe_applies_and_the_card_states(tmp_pat
 @pytest.mark.slow
 def test_too_few_keypoints_to_fit_are_refused_and_the_bundle_is_left_alone(tmp_path):
     import shutil
-    from sphere_jax import paths
     copy = tmp_path / "bundle"
-    shutil.copytree(paths.shipped_bundle("lead_pn"), copy)
+    shutil.copytree(shipped.bundle_path("lead_pn"), copy)
     before = (copy / whitening.FILE).read_bytes()
     with pytest.raises(sphere_jax.SphereJaxError, match="scans must be enough to describe "
                                                          "more keypoints than the descriptor's "

@@ -7,9 +7,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from configs import eval_classification
-from sphere_jax import checks, paths
+from sphere_jax import checks
 from sphere_jax.data import oriented
 from sphere_jax.eval import classification
+from sphere_jax.models import shipped
 
 @pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
 def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
@@ -21,7 +22,7 @@ def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
     c.model_kwargs = dict(features=(32, 32, 64), head=(32,))
     # The shipped 'small' whole-shape Compass (B = 8): half the time of the default 'mid' one
     # (36 s against 72 s here), which the shipped-outputs fixture checks.
-    c.compass_bundle = paths.shipped_bundle("compass_shapes_small", required=True)
+    c.compass_bundle = shipped.bundle_path("compass_shapes_small", required=True)
     rows, md = classification.run(c, str(tmp_path), progress=False)
     print(md)
     acc = {(r["method"], r["split"]): r["accuracy"] for r in rows}
@@ -40,7 +41,7 @@ def test_compass_pointnet_keeps_accuracy_under_rotation(tmp_path):
 
 def test_compass_train_rotated_turns_only_compass_training_shapes():
     c = eval_classification.get_config("tiny")
-    c.compass_bundle = paths.shipped_bundle("compass_shapes_small", required=True)
+    c.compass_bundle = shipped.bundle_path("compass_shapes_small", required=True)
     assert not classification.method_config(c, "compass+pointnet").data.rotate
     assert classification.method_config(c, "compass_train_rotated").data.rotate
     assert classification.method_config(c, "compass_train_rotated").orient_bundle

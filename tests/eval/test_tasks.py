@@ -7,6 +7,7 @@ import pytest
 from configs import eval_classification, eval_registration
 from sphere_jax import paths
 from sphere_jax.eval import tasks
+from sphere_jax.models import shipped
 
 
 def test_run_record_names_the_bundles_the_methods_use():
@@ -14,7 +15,7 @@ def test_run_record_names_the_bundles_the_methods_use():
     c.methods = "fpfh,lead_compass"
     used = tasks.bundles_used(c)
     assert sorted(used) == ["compass", "lead"]
-    assert used["lead"]["path"] == paths.relative(paths.shipped_bundle("lead"))
+    assert used["lead"]["path"] == paths.relative(shipped.bundle_path("lead"))
     assert used["lead"]["steps_done"] > 0 and len(used["lead"]["fingerprint"]) == 16
     c = eval_classification.get_config("small")           # the whole-shape Compass
     assert sorted(tasks.bundles_used(c)) == ["compass_shapes"]
@@ -25,12 +26,12 @@ def test_run_record_names_the_bundles_the_methods_use():
 def test_a_bundle_set_for_a_kind_no_method_uses_is_named_in_a_warning():
     c = eval_registration.get_config("quick")
     c.methods = "shot,usc"
-    c.bundles.lead = paths.shipped_bundle("lead_pn")         # a slip: lead_pn meant
+    c.bundles.lead = shipped.bundle_path("lead_pn")         # a slip: lead_pn meant
     with pytest.warns(UserWarning, match=r"config.bundles.lead=.* is not used: none of the "
                                          r"methods shot, usc needs a lead bundle"):
         tasks.check_bundles(c, ["shot", "usc"])
     c.methods = "shot,lead_pn"
-    c.bundles.lead = paths.shipped_bundle("lead")            # the defaults: no word
+    c.bundles.lead = shipped.bundle_path("lead")            # the defaults: no word
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         tasks.check_bundles(c, ["shot", "lead_pn"])

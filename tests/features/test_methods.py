@@ -3,13 +3,13 @@ ground-truth diagnostics describe a pair in one pose."""
 import numpy as np
 import pytest
 
-from sphere_jax import paths
 from sphere_jax.bundles import inference
 from sphere_jax.features import methods
+from sphere_jax.models import shipped
 from tests.eval import _fixtures
 from tests.eval._fixtures import relative_difference as _relative
 
-BUNDLES = {k: paths.shipped_bundle(k) for k in ("lead", "compass")}
+BUNDLES = {k: shipped.bundle_path(k) for k in ("lead", "compass")}
 
 
 @pytest.fixture(scope="module")

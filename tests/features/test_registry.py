@@ -2,7 +2,7 @@
 library and the CLI use derive from it, and a wrong name is refused with the choices."""
 import pytest
 
-from sphere_jax import align, checks
+from sphere_jax import checks
 from sphere_jax.features import methods, registry
 
 
@@ -22,11 +22,14 @@ def test_every_key_and_name_is_unique():
 
 
 def test_library_lists_derive_from_the_registry():
-    assert set(align.LEARNED + align.HANDCRAFTED) == set(methods.DESCRIPTORS)
-    assert set(align.VOTED) == set(methods.VOTED) == {"lead_vote", "shot_vote"}
-    assert methods.BUNDLE_OF["lead_compass"] == ("lead", "compass")
-    assert methods.BUNDLE_OF["compass"] == ("compass",)                # an LRF's bundle
-    assert not set(align.LEARNED) & set(align.HANDCRAFTED)
+    learned = registry.keys("descriptor", learned=True)
+    hand_crafted = registry.keys("descriptor", learned=False)
+    assert set(learned + hand_crafted) == set(registry.keys("descriptor"))
+    assert learned == ("lead", "lead_compass", "lead_pn", "sound")
+    assert registry.keys("voted") == ("lead_vote", "shot_vote")
+    assert registry.needs("lead_compass") == ("lead", "compass")
+    assert registry.needs("compass") == ("compass",)                # an LRF's bundle
+    assert all(m.build is not None for m in registry.METHODS)
 
 
 @pytest.mark.parametrize("name, kinds", [("lead@shot", ("descriptor",)),

@@ -11,7 +11,7 @@ import os
 import numpy as np
 
 import sphere_jax
-from sphere_jax import paths
+from sphere_jax.models import shipped
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 FIXTURE = os.path.join(HERE, "shipped_outputs.npz")
@@ -37,7 +37,7 @@ KEYPOINTS = np.array([10, 200, 3001, 3500, 4600, 4800, 5100, 5300])
 
 
 def bundle(name):
-    return paths.shipped_bundle(name, required=True)
+    return shipped.bundle_path(name, required=True)
 
 
 def compute():

@@ -9,6 +9,7 @@ from sphere_jax.bundles import inference
 from sphere_jax.data import augment, patches
 from sphere_jax.data.readers import io
 from sphere_jax.spherical import so3
+from sphere_jax.models import shipped
 from tests.eval import _fixtures
 from tests.models import _helpers
 
@@ -36,7 +37,7 @@ def _scans():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["compass", "sound"])
 def test_shipped_frames_rotate_with_the_scan(name, capsys):
-    bundle = inference.load_bundle(paths.shipped_bundle(name, required=True))
+    bundle = inference.load_bundle(shipped.bundle_path(name, required=True))
     for scan, pts, radius, (median_bound, mean_bound) in _scans():
         kp = patches.random_keypoints(pts, 100, np.random.default_rng(0))
         frames = bundle.orient(pts, kp, radius=radius)

@@ -4,18 +4,19 @@ import numpy as np
 import pytest
 from sklearn.neighbors import KDTree
 
-from sphere_jax import paths
 from sphere_jax.data import augment
+from sphere_jax.features import methods as method_lib
 from sphere_jax.features import voted as voted_lib
 from sphere_jax.registration import estimation
 from sphere_jax.registration import vote as vote_lib
 from sphere_jax.registration.fragments import Fragment
 from sphere_jax.registration.matching import mutual_matches
 from sphere_jax.spherical import so3
+from sphere_jax.models import shipped
 from tests.eval import _fixtures
 from tests.eval._fixtures import relative_difference as _relative
 
-BUNDLES = {"lead": paths.shipped_bundle("lead"), "compass": paths.shipped_bundle("compass")}
+BUNDLES = {"lead": shipped.bundle_path("lead"), "compass": shipped.bundle_path("compass")}
 
 
 def _small_turns(rng, n, max_deg):
@@ -133,9 +134,9 @@ def test_vote_skips_frames_it_cannot_use_and_refuses_bad_shapes():
     with pytest.raises(ValueError, match="tol_deg"):
         vote_lib.vote_rotation(fa, fb, tol_deg=0)
     with pytest.raises(ValueError, match="needs bundle"):
-        voted_lib.voted_frames("lead_vote", 0.3, {})
+        method_lib.voted_frames("lead_vote", 0.3, {})
     with pytest.raises(ValueError, match="name must be one of"):
-        voted_lib.voted_frames("lead", 0.3, BUNDLES)
+        method_lib.voted_frames("lead", 0.3, BUNDLES)
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +145,7 @@ def moved_pair():
 
 
 def _vote_and_describe(name, f, g, **kw):
-    voted = voted_lib.voted_frames(name, 0.30, BUNDLES, **kw)
+    voted = method_lib.voted_frames(name, 0.30, BUNDLES, **kw)
     inputs, votes = voted.describe_pairs({0: f, 1: g}, [(0, 1)], mutual_matches)
     return inputs[(0, 1)], votes[(0, 1)]
 
@@ -209,7 +210,7 @@ def test_a_wrong_vote_loses_to_the_first_pass_when_consensus_decides(moved_pair)
     matches little; RANSAC's consensus then keeps SHOT's first pass (in its own LRFs), which
     was right. Without a consensus the wrong second pass is what comes out."""
     f, g, t = moved_pair
-    first, again = voted_lib._shot_vote(0.30)
+    first, again = voted_lib.shot_vote(0.30)
     rng = np.random.default_rng(4)
 
     def unrelated_frames(frag):
@@ -233,7 +234,7 @@ def test_a_wrong_vote_loses_to_the_first_pass_when_consensus_decides(moved_pair)
 
 def test_consensus_counts_the_matches_one_transform_explains(moved_pair):
     f, g, t = moved_pair
-    first, _ = voted_lib._shot_vote(0.30)
+    first, _ = voted_lib.shot_vote(0.30)
     d_f, d_g = first(f)[0], first(g)[0]
     ia, _ = mutual_matches(d_f, d_g)
     right = estimation.consensus(f, g, d_f, d_g, iterations=5000)
@@ -248,7 +249,7 @@ def test_consensus_keeps_the_weaker_mode_when_a_box_symmetry_outvotes_the_truth(
     right. SHOT binned in the wrong mode matches little; the consensus finds the second mode
     and keeps it (the truth within half a degree). With one hypothesis the wrong mode stays."""
     f, g, t = moved_pair
-    first, again = voted_lib._shot_vote(0.30)
+    first, again = voted_lib.shot_vote(0.30)
     d_f, frames_f, _ = first(f)
     quarter = so3.euler_to_matrix_np(0.0, 0.0, np.pi / 2)
     n = len(f.keypoints)
@@ -284,7 +285,7 @@ def test_box_turns_recover_a_vote_the_room_s_symmetry_won_outright(moved_pair):
     consensus picks it (within half a degree, 90° turn reported). Without them it stays
     wrong."""
     f, g, t = moved_pair
-    first, again = voted_lib._shot_vote(0.30)
+    first, again = voted_lib.shot_vote(0.30)
     _, frames_f, _ = first(f)
     q = np.linalg.eigh(f.normals.T.astype(np.float64) @ f.normals)[1]
     w = q @ so3.euler_to_matrix_np(0.0, 0.0, np.pi / 2) @ q.T @ t[:3, :3]

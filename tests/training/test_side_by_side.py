@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from sphere_jax import paths
 from sphere_jax.bundles import store
 from sphere_jax.data import demo
 from sphere_jax.training import adaptation, side_by_side
+from sphere_jax.models import shipped
 
 
 def test_core_shares_are_disjoint_until_there_are_too_few_cores():
@@ -35,7 +35,7 @@ def test_two_bundles_adapt_side_by_side_into_their_own_workdirs(tmp_path):
     for name, points in (("a", src), ("b", dst)):
         scans.append(str(tmp_path / f"{name}.npy"))
         np.save(scans[-1], points)
-    jobs = [(kind, paths.shipped_bundle(kind), str(tmp_path / kind), None)
+    jobs = [(kind, shipped.bundle_path(kind), str(tmp_path / kind), None)
             for kind in ("compass", "lead")]
     adapted = side_by_side.adapt_side_by_side(jobs, ",".join(scans), steps=2, progress=False)
     assert adapted == [os.path.join(str(tmp_path / k), "bundle") for k in ("compass", "lead")]
@@ -54,7 +54,7 @@ def test_a_failed_job_raises_its_error_after_the_others_end(tmp_path):
     from sphere_jax import checks
     empty = tmp_path / "empty"
     empty.mkdir()
-    jobs = [("lead", paths.shipped_bundle("lead"), str(tmp_path / "lead"), None)]
+    jobs = [("lead", shipped.bundle_path("lead"), str(tmp_path / "lead"), None)]
     with pytest.raises(checks.SphereJaxError):
         side_by_side.adapt_side_by_side(jobs, str(empty), steps=1, progress=False)
 
@@ -86,7 +86,7 @@ def test_a_script_without_a_main_guard_gets_a_clear_error(tmp_path):
     top level would start jobs from inside a job, which Python refuses there: the caller gets
     the project's error naming the guard, not a bare broken pool."""
     script = tmp_path / "unguarded.py"
-    jobs = [(k, paths.shipped_bundle(k), str(tmp_path / k), None) for k in ("lead", "compass")]
+    jobs = [(k, shipped.bundle_path(k), str(tmp_path / k), None) for k in ("lead", "compass")]
     script.write_text("from sphere_jax.training import side_by_side\n"
                       f"side_by_side.adapt_side_by_side({jobs!r}, {str(tmp_path)!r}, steps=1, "
                       "progress=False)\n")
