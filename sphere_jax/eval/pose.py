@@ -1,5 +1,5 @@
 """Object pose from an RGB-D frame (seed ch. 7): box → crop → classify → choose among stored
-views → FPFH → RANSAC or FGR → point-to-plane ICP.
+views → FPFH → RANSAC (:mod:`sphere_jax.registration`) or FGR (open3d) → point-to-plane ICP.
 
 A model is a set of stored partial views of one object, each a cloud in the object's frame.
 :func:`estimate_pose` returns the object-to-camera transform with the ICP inlier ratio
@@ -18,13 +18,18 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from tqdm.auto import tqdm
 
-from sphere_jax.data import o3d_convert, patches
+from sphere_jax.data import o3d_convert
 from sphere_jax.data.generators import synthetic
 from sphere_jax.data.readers import rgbd
 from sphere_jax.eval import labelled, registration, report, tasks
 from sphere_jax.eval.objects import hsv_histogram
+from sphere_jax.features import descriptors
+from sphere_jax.registration.estimation import point_to_plane_icp, ransac
+from sphere_jax.registration.fragments import fragment
+from sphere_jax.registration.matching import mutual_matches
 
-METHODS = ("ransac", "fgr")                 # the coarse registration (open3d)
+METHODS = ("ransac", "fgr")                 # the coarse registration
+ICP_ITERATIONS = 60                         # a partial view's ICP converges more slowly
 
 
 @dataclasses.dataclass
@@ -78,45 +83,44 @@ def remove_support_plane(points, distance=0.01, min_fraction=0.3, seed=0):
     return points[keep]
 
 
+@dataclasses.dataclass
+class Coarse:
+    transformation: np.ndarray      # source -> target, 4x4
+    fitness: float                  # share of source points within the distance of the target
+
+
 def _features(points, voxel):
-    import open3d as o3d
-    pts = patches.voxel_downsample(points, voxel)
-    pcd = o3d_convert.point_cloud(pts)
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(2 * voxel, 30))
-    pcd.orient_normals_towards_camera_location(np.zeros(3))
-    fpfh = o3d.pipelines.registration.compute_fpfh_feature(
-        pcd, o3d.geometry.KDTreeSearchParamHybrid(5 * voxel, 100))
-    return pcd, fpfh
+    """``(fragment, FPFH [N, 33])``: the voxelised cloud, its normals turned to the camera
+    (at the origin) and every point's FPFH (five voxels wide)."""
+    frag = fragment("view", points, voxel, np.random.default_rng(0), n_keypoints=len(points),
+                    viewpoint=(0.0, 0.0, 0.0))            # every point a keypoint
+    return frag, descriptors.fpfh(frag.points, frag.normals, frag.keypoints, 5 * voxel)
+
+
+def _fitness(src, dst, t, distance):
+    moved = src.points @ t[:3, :3].T + t[:3, 3]
+    return float(np.mean(dst.tree.query(moved, k=1)[0][:, 0] < distance))
 
 
 def global_registration(src, src_fpfh, dst, dst_fpfh, voxel, method="ransac", seed=0,
-                        iterations=100_000):
-    """Coarse ``T`` with ``dst ≈ T src`` from FPFH matches: RANSAC or Fast Global
-    Registration (open3d)."""
-    import open3d as o3d
-    reg = o3d.pipelines.registration
+                        iterations=100_000) -> Coarse:
+    """Coarse ``T`` with ``dst ≈ T src`` from FPFH matches: the registration library's RANSAC
+    on mutual matches, or open3d's Fast Global Registration."""
     dist = 1.5 * voxel
     if method == "fgr":
-        return reg.registration_fgr_based_on_feature_matching(
-            src, dst, src_fpfh, dst_fpfh,
+        import open3d as o3d
+        reg = o3d.pipelines.registration
+        t = np.asarray(reg.registration_fgr_based_on_feature_matching(
+            o3d_convert.point_cloud(src.points), o3d_convert.point_cloud(dst.points),
+            o3d_convert.feature(src_fpfh), o3d_convert.feature(dst_fpfh),
             reg.FastGlobalRegistrationOption(maximum_correspondence_distance=dist))
-    if method != "ransac":
+            .transformation)
+    elif method == "ransac":
+        ia, ib = mutual_matches(src_fpfh, dst_fpfh)
+        t = ransac(dst.points[ib], src.points[ia], dist, iterations, seed)
+    else:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    o3d.utility.random.seed(int(seed))
-    return reg.registration_ransac_based_on_feature_matching(
-        src, dst, src_fpfh, dst_fpfh, True, dist, reg.TransformationEstimationPointToPoint(False),
-        3, [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
-            reg.CorrespondenceCheckerBasedOnDistance(dist)],
-        reg.RANSACConvergenceCriteria(int(iterations), 0.999))
-
-
-def refine_icp(src, dst, init, voxel):
-    """Point-to-plane ICP from ``init``; returns open3d's result (fitness, inlier_rmse)."""
-    import open3d as o3d
-    reg = o3d.pipelines.registration
-    return reg.registration_icp(src, dst, 1.0 * voxel, init,
-                                reg.TransformationEstimationPointToPlane(),
-                                reg.ICPConvergenceCriteria(max_iteration=60))
+    return Coarse(t, _fitness(src, dst, t, dist))
 
 
 def estimate_pose(depth, intrinsics, box, models: Sequence[ObjectModel], voxel=0.01,
@@ -149,10 +153,10 @@ def estimate_pose(depth, intrinsics, box, models: Sequence[ObjectModel], voxel=0
     seconds["global"] = time.perf_counter() - t
     t = time.perf_counter()
     coarse, m, v, src = best
-    fine = refine_icp(src, scene, coarse.transformation, voxel)
+    t_fine, fitness, rmse = point_to_plane_icp(src, scene, coarse.transformation, voxel,
+                                               ICP_ITERATIONS)
     seconds["icp"] = time.perf_counter() - t
-    return PoseResult(np.asarray(fine.transformation), m.name, v, float(fine.fitness),
-                      float(fine.inlier_rmse), seconds)
+    return PoseResult(t_fine, m.name, v, fitness, rmse, seconds)
 
 
 def pose_errors(t_est, t_gt, model_points=None):

@@ -91,12 +91,13 @@ def consensus(frag_i, frag_j, desc_i, desc_j, max_distance=0.05, iterations=50_0
                             seed)[1]
 
 
-def point_to_plane_icp(src, dst, t_init, distance):
-    """open3d's point-to-plane ICP of two fragments (with the target's normals);
-    ``(T, fitness, rmse)``."""
+def point_to_plane_icp(src, dst, t_init, distance, iterations=30):
+    """open3d's point-to-plane ICP of two fragments (with the target's normals), at most
+    ``iterations`` steps; ``(T, fitness, rmse)``."""
     import open3d as o3d
     reg = o3d.pipelines.registration
     s, d = o3d_convert.point_cloud(src.points), o3d_convert.point_cloud(dst.points, dst.normals)
     out = reg.registration_icp(s, d, distance, np.asarray(t_init, np.float64),
-                               reg.TransformationEstimationPointToPlane())
+                               reg.TransformationEstimationPointToPlane(),
+                               reg.ICPConvergenceCriteria(max_iteration=int(iterations)))
     return np.asarray(out.transformation), float(out.fitness), float(out.inlier_rmse)
