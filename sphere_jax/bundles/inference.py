@@ -117,6 +117,30 @@ class Bundle:
         out = stream_chunked(self._orient_fn, chain.make, chain.n, self._chunk(chunk), workers)
         return [s.scatter(o, (3, 3), on_invalid) for s, o in zip(chain.streams, chain.split(out))]
 
+    def orient_modes(self, points, keypoints, k, radius=None, chunk=None, seed=0, workers=None,
+                     on_invalid="raise"):
+        """Frame hypotheses ``[K, k, 3, 3]``: the ``k`` strongest modes of a Compass bundle's
+        SO(3) map at each keypoint, strongest first (the first is :meth:`orient`'s);
+        ``on_invalid`` as :meth:`orient`."""
+        return self.orient_modes_clouds([(points, keypoints)], k, radius, chunk, seed,
+                                        workers, on_invalid)[0]
+
+    def orient_modes_clouds(self, clouds, k, radius=None, chunk=None, seed=0, workers=None,
+                            on_invalid="raise"):
+        """:meth:`orient_modes` of several clouds in one stream of chunks."""
+        self._can("orient_modes")
+        k = checks.positive(k, "k", integer=True)
+        checks.choice(on_invalid, "on_invalid", ON_INVALID)
+        chain = self._chain(clouds, radius, seed, on_invalid)
+        if k not in self._modes_fns:
+            spec = self.spec
+            self._modes_fns[k] = jax.jit(in_slices(
+                lambda p: spec.orient_modes(self.model, self.variables, p, k), spec.infer_slice))
+        out = stream_chunked(self._modes_fns[k], chain.make, chain.n, self._chunk(chunk),
+                             workers)
+        return [s.scatter(o, (k, 3, 3), on_invalid) for s, o in zip(chain.streams,
+                                                                    chain.split(out))]
+
     def _chain(self, clouds, radius, seed, on_invalid, frames=None, draw=DRAW):
         """The clouds' :class:`SupportStream` chained (:class:`StreamChain`), ``frames``
         (one ``[K, 3, 3]`` per cloud, or None) attached, each checked for ``on_invalid``."""
@@ -238,7 +262,7 @@ class Bundle:
     # ---- jitted pieces ----------------------------------------------------------------------
 
     def __post_init__(self):
-        self._framed = {}
+        self._framed, self._modes_fns = {}, {}
         spec = self.spec
         if spec.orient is not None:
             self._orient_fn = jax.jit(in_slices(

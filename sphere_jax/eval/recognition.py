@@ -215,7 +215,7 @@ def run(config, workdir, progress=True):
         test_frames = test_frames[:d.max_frames]
     database = build_database(model_frames, config.leaf, d.voxel)
     bundles = tasks.bundle_paths(config)
-    names = tasks.chosen_methods(config, registry.keys("descriptor"), bundles)
+    names = tasks.chosen_methods(config, _methods(), bundles)
     describers = {m: method_lib.descriptor(m, d.radius, bundles, d.radius / 2, config.chunk)
                   for m in names}
     rows, curves = evaluate(test_frames, database, describers, config.leaf, d.voxel,
@@ -235,4 +235,9 @@ def run(config, workdir, progress=True):
     return rows, md
 
 
-TASK = tasks.Task(run=run, methods=lambda: registry.keys("descriptor"))
+def _methods():
+    """The descriptors a database of single descriptors per keypoint can hold."""
+    return tuple(m.key for m in registry.METHODS if m.kind == "descriptor" and not m.hypotheses)
+
+
+TASK = tasks.Task(run=run, methods=_methods)

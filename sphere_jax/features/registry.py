@@ -3,7 +3,8 @@
 A method is a descriptor (``fpfh``, ``shot``, ``spin``, ``usc``, ``lead``, ``lead_pn``,
 ``sound``), the frame its support is turned into (``flare``, ``shot``'s LRF, ``compass``,
 ``gt`` — read from a pair's ground truth, a diagnostic) and a procedure run around it (``vote``:
-the pair vote of :mod:`sphere_jax.registration.vote`). A descriptor alone means its own frame:
+the pair vote of :mod:`sphere_jax.registration.vote`; ``modes``: described under the frame's
+strongest modes, :mod:`sphere_jax.features.modes`). A descriptor alone means its own frame:
 ``lead`` is ``lead@flare``, ``shot`` is ``shot@shot``. LRFs are named by their frame alone.
 
 Each :class:`Method` also has a ``key``, the short name the result files, tables and configs
@@ -22,6 +23,7 @@ name                     key               what
 ``lead@compass``         ``lead_compass``  ... turned to Compass's frame
 ``lead_pn@flare``        ``lead_pn``       LEAD-PN on FLARE-oriented patches
 ``sound``                ``sound``         SOUND, self-oriented
+``lead@compass+modes``   ``lead_modes``    ... under Compass's 3 strongest frames
 ``lead@compass+vote``    ``lead_vote``     LEAD in Compass's frames, pair vote, again
 ``shot+vote``            ``shot_vote``     SHOT in its LRF, pair vote, binned again
 ``lead@gt``              ``lead_gt``       diagnostic: frames from the ground truth
@@ -35,7 +37,7 @@ from typing import Callable, Optional
 
 from sphere_jax import checks
 from sphere_jax.features import builders as b
-from sphere_jax.features import lrfs, voted
+from sphere_jax.features import lrfs, modes, voted
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,6 +54,7 @@ class Method:
     kind: str = "descriptor"
     aliases: tuple[str, ...] = ()       # other spellings: a descriptor's own frame named
     build: Optional[Callable] = None
+    hypotheses: bool = False            # describes under several frames: [K, H, D]
 
     @property
     def learned(self) -> bool:
@@ -78,6 +81,9 @@ METHODS = (
     Method("lead_pn@flare", "lead_pn", ("lead_pn",), "LEAD-PN (FLARE)",
            build=b.network("lead_pn")),
     Method("sound", "sound", ("sound",), "SOUND", build=b.network("sound")),
+    Method("lead@compass+modes", "lead_modes", ("lead", "compass"),
+           f"LEAD (Compass, {modes.MODES} frame hypotheses)", build=modes.lead_modes,
+           hypotheses=True),
     Method("lead@compass+vote", "lead_vote", ("lead", "compass"), "LEAD (Compass) + vote",
            "voted", build=voted.lead_vote),
     Method("shot+vote", "shot_vote", (), "SHOT + vote", "voted", ("shot@shot+vote",),

@@ -64,7 +64,15 @@ def orient(model, variables, patches):
     return model.apply(variables, patches, train=False).rotations
 
 
+def orient_modes(model, variables, patches, k):
+    """The ``k`` strongest modes of each patch's SO(3) map ``[K, k, 3, 3]``, the first
+    :func:`orient`'s (:func:`~sphere_jax.spherical.soft_argmax.soft_argmax_modes`)."""
+    maps = model.apply(variables, patches, train=False).maps
+    return jax.vmap(lambda m: soft_argmax.soft_argmax_modes(
+        m, k, temperature=model.temperature, window=model.window)[0])(maps)
+
+
 # Compass adapts with each batch's moments (no frozen_batch_norm): its validation angle fell
 # faster so than with the bundle's running moments.
 SPEC = ModelSpec(kind="compass", module=Compass, outputs=CompassOut, loss=loss,
-                 inputs=with_copies, copies=True, orient=orient)
+                 inputs=with_copies, copies=True, orient=orient, orient_modes=orient_modes)

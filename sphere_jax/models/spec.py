@@ -16,6 +16,8 @@ import flax.linen as nn
 LossFn = Callable[[NamedTuple, dict, Any], tuple]
 # (model, variables, unit patches [K, N, 3]) -> rotations [K, 3, 3] (columns x̂, ŷ, ẑ)
 OrientFn = Callable[[nn.Module, dict, Any], Any]
+# (model, variables, unit patches [K, N, 3], k) -> the k strongest frames [K, k, 3, 3]
+OrientModesFn = Callable[[nn.Module, dict, Any, int], Any]
 # (model, variables, unit patches [K, N, 3], frames [K, 3, 3] or None) -> descriptors [K, D]
 DescribeFn = Callable[[nn.Module, dict, Any, Any], Any]
 
@@ -39,6 +41,8 @@ class ModelSpec:
       copies: batches carry a rotated, occluded copy of each patch and its rotation.
       labelled: trained on shape labels (batches of ``points`` and ``labels``).
       orient / describe: inference on unit patches (None: the kind does not do it).
+      orient_modes: the strongest frames of an orienting kind, first ``orient``'s (frame
+        hypotheses; None: one frame only).
       describe_frames: ``describe`` turns its output by LRFs (FLARE unless given).
       frozen_batch_norm: adapting to new scans keeps the bundle's running moments (an
         autoencoder fitted with each batch's moments fits another function than the one
@@ -57,6 +61,7 @@ class ModelSpec:
     labelled: bool = False
     orient: Optional[OrientFn] = None
     describe: Optional[DescribeFn] = None
+    orient_modes: Optional[OrientModesFn] = None
     describe_frames: bool = False
     frozen_batch_norm: bool = False
     build: Optional[Callable[[Any], nn.Module]] = None

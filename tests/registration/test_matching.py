@@ -43,3 +43,32 @@ def test_undescribed_rows_never_match_where_a_zero_row_would_take_them():
     za, _ = matching.mutual_matches(zeroed, b)
     assert len(za) < 0.5 * len(ja)                    # 115 of 281 here
     assert len(matching.mutual_matches(np.full((3, 84), np.nan), b)[0]) == 0
+
+
+def _loop_matches_over_hypotheses(a, b):
+    """Mutual nearest neighbours under the smallest distance over hypothesis pairs, by loops."""
+    d = np.full((len(a), len(b)), np.inf)
+    for i in range(len(a)):
+        for j in range(len(b)):
+            if np.isfinite(a[i]).all() and np.isfinite(b[j]).all():
+                d[i, j] = min(np.sum((x - y) ** 2) for x in a[i] for y in b[j])
+    pairs = [(i, int(np.argmin(d[i]))) for i in range(len(a)) if np.isfinite(d[i]).any()]
+    pairs = [(i, j) for i, j in pairs if int(np.argmin(d[:, j])) == i]
+    return np.asarray(pairs, np.int64).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("h", [1, 2, 3])
+def test_matches_over_frame_hypotheses_equal_the_loop_reference(h):
+    rng = np.random.default_rng(h)
+    a = rng.normal(size=(30, h, 6))
+    b = np.concatenate([a[:20] + 0.05 * rng.normal(size=(20, h, 6)),
+                        rng.normal(size=(15, h, 6))])
+    b = b[:, rng.permutation(h)]                  # the hypotheses in another order
+    a[4], b[7] = np.nan, np.nan                   # undescribed keypoints never match
+    ia, ib = matching.mutual_matches(a, b)
+    got = np.stack([ia, ib], 1)
+    np.testing.assert_array_equal(got, _loop_matches_over_hypotheses(a, b))
+    assert len(got) >= 18                         # the 20 planted pairs, less the NaN ones
+    # blocks of a few queries give the same answer as one block
+    assert np.array_equal(matching.nearest(a[5:], b[8:], rows=4),
+                          matching.nearest(a[5:], b[8:], rows=1000))

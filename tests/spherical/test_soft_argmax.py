@@ -58,3 +58,40 @@ def test_bad_input():
     x[1, 2, 3] = np.nan
     with pytest.raises(ValueError, match="must be finite; got 1 non-finite"):
         soft_argmax.soft_argmax_rotation(x)
+
+
+def rotation_bump(b, rot_33, kappa=12.0):
+    """A map peaked at rotation ``rot_33``: exp(κ (cos θ - 1)) of each cell's geodesic angle
+    θ to it (a von Mises-Fisher bump on SO(3), free of grid-index artefacts)."""
+    grid = so3.so3_grid_matrices(b)
+    cos = (np.einsum("jagxy,xy->jag", grid, rot_33) - 1.0) / 2.0
+    return np.exp(kappa * (cos - 1.0))
+
+
+def test_modes_find_two_planted_rotations_strongest_first():
+    b = 12                                      # Compass's: 15° cells
+    r1 = so3.euler_to_matrix_np(0.7, 1.1, 2.3)
+    r2 = r1 @ so3.euler_to_matrix_np(0.0, np.pi, 0.0)         # the same frame, half a turn on
+    x = (8.0 * (rotation_bump(b, r1) + 0.8 * rotation_bump(b, r2))).astype(np.float32)
+    rots, values = soft_argmax.soft_argmax_modes(jnp.asarray(x), 3)
+    rots = np.asarray(rots, np.float64)
+    assert np.degrees(so3.geodesic_distance_np(rots[0], r1)) < 5.0
+    assert np.degrees(so3.geodesic_distance_np(rots[1], r2)) < 5.0
+    assert values[0] > values[1] > values[2]
+    # the first mode is the soft arg-max itself; every mode is a rotation
+    one = np.asarray(soft_argmax.soft_argmax_rotation(jnp.asarray(x)))
+    assert np.abs(rots[0] - one).max() < 1e-5
+    assert np.abs(rots @ rots.transpose(0, 2, 1) - np.eye(3)).max() < 1e-4
+    # and no later mode lies within the separation of an earlier one
+    for i in range(3):
+        for j in range(i):
+            assert np.degrees(so3.geodesic_distance_np(rots[i], rots[j])) > 30.0
+
+
+def test_modes_beyond_the_separated_cells_repeat_the_last():
+    b = 4                                       # 512 cells: 90° apart leaves only a few modes
+    x = rotation_bump(b, so3.euler_to_matrix_np(0.3, 0.9, 0.1)).astype(np.float32)
+    rots, values = jax.jit(lambda m: soft_argmax.soft_argmax_modes(m, 40, 90.0))(x)
+    assert np.isfinite(np.asarray(rots)).all()
+    assert np.isneginf(np.asarray(values)[-1])
+    assert np.abs(np.asarray(rots)[-1] - np.asarray(rots)[-2]).max() == 0.0
