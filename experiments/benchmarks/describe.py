@@ -31,10 +31,12 @@ import warnings
 
 import numpy as np
 
-METHODS = ("fpfh", "shot", "usc", "lead", "lead_compass", "lead_pn", "sound")
-# The jitted networks each learned method runs on a patch: (bundle kind, function).
+METHODS = ("fpfh", "shot", "usc", "lead", "lead_compass", "lead_modes", "lead_pn", "sound")
+# The jitted networks each learned method runs on a patch: (bundle kind, function); the
+# spectral turns of lead_modes's maps into its frame hypotheses are not counted.
 NETWORKS = {"lead": (("lead", "describe"),), "lead_compass": (("compass", "orient"),
                                                                ("lead", "describe")),
+            "lead_modes": (("compass", "orient"), ("lead", "describe")),
             "lead_pn": (("lead_pn", "describe"),), "sound": (("sound", "describe"),)}
 
 
@@ -142,7 +144,7 @@ def _flops(method, chunk_patches):
         x = chunk_patches[:, :b.config.data.n_points]
         if what == "orient":
             total += unrolled_gflop(b._orient_fn, x) / len(x)
-        elif method == "lead_compass":              # LEAD in given frames
+        elif method in ("lead_compass", "lead_modes"):    # LEAD in given frames
             frames = np.broadcast_to(np.eye(3, dtype=np.float32), (len(x), 3, 3))
             total += unrolled_gflop(b._describe_fn, x, frames) / len(x)
         else:
