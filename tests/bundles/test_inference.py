@@ -363,3 +363,11 @@ def test_chunks_split_over_two_host_devices_give_the_same_results(tmp_path):
                                atol=1e-5)
     np.testing.assert_allclose(two["lead"], inference.load_bundle("lead").describe(src, kp),
                                atol=1e-5)
+
+
+def test_frame_hypotheses_are_refused_by_a_bundle_without_them_and_for_a_bad_count():
+    pts = np.random.default_rng(0).normal(size=(500, 3)).astype(np.float32) * 0.1
+    with pytest.raises(sphere_jax.SphereJaxError, match="bundle must be of kind compass"):
+        inference.load_bundle("lead").orient_modes(pts, np.arange(3), 2, radius=0.3)
+    with pytest.raises(sphere_jax.SphereJaxError, match="k must be a positive"):
+        inference.load_bundle("compass").orient_modes(pts, np.arange(3), 0, radius=0.3)
