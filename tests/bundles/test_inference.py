@@ -42,7 +42,7 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
     for name in shipped.SHIPPED:                  # shipped bundles by name: the same folder
         assert inference.bundle_path(name) == shipped.bundle_path(name, required=True)
         kind = inference.load_bundle(name).kind
-        assert kind == ("classify" if "pointnet" in name else name.replace("_shapes", ""))
+        assert kind == shipped.SHIPPED[name].kind
     lead_config = lead.get_config("tiny")
     with pytest.raises(ValueError, match="of kind compass, sound to orient"):
         inference.Bundle(models.build(lead_config), {}, lead_config).orient(cloud, kp)
