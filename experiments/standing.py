@@ -29,7 +29,8 @@ def _value(rows, method, column):
 def rows(match, lomatch, rotated, lrf_kitchen, lrf_bunny, lrf_kitchen_adapted=None,
          lrf_bunny_adapted=None):
     """``[(target, measured, met)]`` from the five run folders, and the LRF runs that adapted
-    Compass on the scans first (declared; optional): a Compass target is met by either."""
+    Compass on the scans first (declared; optional): shown beside the Compass rows, which
+    only the shipped bundle's own figures meet."""
     m, lo, rot = (report.read_means(d, "results") for d in (match, lomatch, rotated))
     kitchen, bunny = (report.read_means(d, "lrf_results") for d in (lrf_kitchen, lrf_bunny))
     adapted = [d and report.read_means(d, "lrf_results")
@@ -39,18 +40,18 @@ def rows(match, lomatch, rotated, lrf_kitchen, lrf_bunny, lrf_kitchen_adapted=No
     ir = lambda rows_, k: _value(rows_, k, "inlier_ratio")
     out = []
     shot, usc = ir(m, "shot"), ir(m, "usc")
-    out.append((f"best learned descriptor ({best}): inlier ratio ≥ SHOT's and USC's",
-                f"{ir(m, best):.3f} against {shot:.3f} and {usc:.3f} "
-                f"({ir(m, best) / shot:.2f}× and {ir(m, best) / usc:.2f}×)",
-                ir(m, best) >= max(shot, usc)))
+    out.append((f"best learned descriptor ({best}): inlier ratio ≥ 1.15× USC's and ≥ 1.3× "
+                f"SHOT's", f"{ir(m, best):.3f} against {usc:.3f} and {shot:.3f} "
+                f"({ir(m, best) / usc:.2f}× and {ir(m, best) / shot:.2f}×)",
+                ir(m, best) >= max(1.15 * usc, 1.3 * shot)))
     c, cs = _value(m, best, "n_correct"), _value(m, "shot", "n_correct")
-    out.append(("its correct matches per pair ≥ 1.5× SHOT's",
-                f"{c:.0f} against {cs:.0f} ({c / cs:.2f}×)", c >= 1.5 * cs))
+    out.append(("its correct matches per pair ≥ 2× SHOT's",
+                f"{c:.0f} against {cs:.0f} ({c / cs:.2f}×)", c >= 2 * cs))
     fmr = _value(m, best, "fmr")
     out.append(("its feature-match recall ≥ 0.95", f"{fmr:.3f}", fmr >= 0.95))
     change = ir(rot, best) / ir(m, best) - 1
-    out.append(("its inlier ratio, every scan rotated: within 10 %",
-                f"{ir(rot, best):.3f} ({100 * change:+.1f} %)", abs(change) <= 0.10))
+    out.append(("its inlier ratio, every scan rotated: within 5 %",
+                f"{ir(rot, best):.3f} ({100 * change:+.1f} %)", abs(change) <= 0.05))
     rr, rr_usc = _value(lo, best, "rr"), _value(lo, "usc", "rr")
     out.append(("3DLoMatch: its registration recall ≥ USC's", f"{rr:.3f} against {rr_usc:.3f}",
                 rr >= rr_usc))
@@ -59,16 +60,15 @@ def rows(match, lomatch, rotated, lrf_kitchen, lrf_bunny, lrf_kitchen_adapted=No
         out.append(("lead_vote: inlier ratio ≥ 1.8× SHOT's on 3DMatch and 3DLoMatch",
                     f"{f_m:.2f}× and {f_lo:.2f}×", min(f_m, f_lo) >= 1.8))
     rep = lambda rows_, k: _value(rows_, k, "rep")
-    for name, rows_, tta, factor in (("redkitchen", kitchen, adapted[0], 1.2),
+    for name, rows_, tta, factor in (("redkitchen", kitchen, adapted[0], 1.5),
                                      ("the bunny", bunny, adapted[1], 1.0)):
         q = rep(rows_, "compass") / rep(rows_, "flare")
         text = f"{rep(rows_, 'compass'):.3f} against {rep(rows_, 'flare'):.3f} ({q:.2f}×)"
-        if tta:
-            q = max(q, rep(tta, "compass") / rep(rows_, "flare"))
+        if tta:                         # shown, not counted: the target is without adaptation
             text += (f"; adapted on the scans first: {rep(tta, 'compass'):.3f} "
                      f"({rep(tta, 'compass') / rep(rows_, 'flare'):.2f}×)")
-        out.append((f"Compass: LRF repeatability ≥ {factor:g}× FLARE's on {name}", text,
-                    q >= factor))
+        out.append((f"Compass: LRF repeatability ≥ {factor:g}× FLARE's on {name}, without "
+                    f"adaptation", text, q >= factor))
     return out
 
 
