@@ -16,6 +16,7 @@ import pytest
 from sphere_jax.data import demo
 from sphere_jax.data.readers import io
 from sphere_jax.eval import registration
+from sphere_jax.models import shipped
 
 pytestmark = pytest.mark.slow     # minutes: left out of the everyday `-m "not slow"` loop
 
@@ -70,9 +71,9 @@ def test_wheel_equals_the_checkout(tmp_path):
     weights = os.path.join(ROOT, "sphere_jax", "weights")
     tracked = subprocess.run(["git", "ls-files", "sphere_jax/weights"], cwd=ROOT,
                              capture_output=True, text=True).stdout.split()
-    shipped = tracked or [os.path.relpath(os.path.join(d, f), ROOT)
-                          for d, _, fs in os.walk(weights) for f in fs]
-    missing = [f for f in shipped if f.replace(os.sep, "/") not in names]
+    bundle_files = tracked or [os.path.relpath(os.path.join(d, f), ROOT)
+                               for d, _, fs in os.walk(weights) for f in fs]
+    missing = [f for f in bundle_files if f.replace(os.sep, "/") not in names]
     assert not missing, f"the wheel lacks {len(missing)} bundle files, e.g. {missing[:3]}"
     for name in (row.folder for row in shipped.SHIPPED.values()):
         assert f"sphere_jax/weights/{name}/bundle/config.json" in names, name
