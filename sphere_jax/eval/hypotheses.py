@@ -17,7 +17,7 @@ from tqdm.auto import tqdm
 
 from sphere_jax.bundles import inference
 from sphere_jax.eval import pair_sets as scene_lib
-from sphere_jax.eval.repeatability import RHO, correspondences
+from sphere_jax.eval.repeatability import correspondences, repeatable
 from sphere_jax.features import modes
 from sphere_jax.registration.matching import mutual_matches
 
@@ -36,12 +36,9 @@ class PairResult:
 def frame_recall(frames_i_CxHx3x3, frames_j_CxHx3x3, rotation_3x3, h):
     """The share of correspondences (row c of each side) where one of the first ``h``
     hypotheses of i and one of j (turned by the ground-truth ``rotation``) are repeatable."""
-    fi = frames_i_CxHx3x3[:, :h]
-    fj = np.einsum("xy,chyz->chxz", rotation_3x3, frames_j_CxHx3x3[:, :h])
-    with np.errstate(invalid="ignore"):
-        x_ok = np.einsum("cax,cbx->cab", fi[..., 0], fj[..., 0]) >= RHO
-        z_ok = np.einsum("cax,cbx->cab", fi[..., 2], fj[..., 2]) >= RHO
-    return float((x_ok & z_ok).any(axis=(1, 2)).mean()) if len(fi) else float("nan")
+    fi = frames_i_CxHx3x3[:, :h, None]                                  # [C, h, 1, 3, 3]
+    fj = np.einsum("xy,chyz->chxz", rotation_3x3, frames_j_CxHx3x3[:, :h])[:, None]
+    return float(repeatable(fi, fj).any(axis=(1, 2)).mean()) if len(fi) else float("nan")
 
 
 def evaluate_pair(compass, frag_i, frag_j, t_gt, desc_i, desc_j, hs, radius, match_dist,

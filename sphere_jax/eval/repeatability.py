@@ -64,14 +64,20 @@ def correspondences(frag_i, frag_j, t_gt, match_dist):
     return frag_i.keypoints[keep], idx[keep, 0]
 
 
+def repeatable(a_x3x3, b_x3x3, rho=RHO):
+    """Whether frames (broadcast over leading axes) agree on both x̂ and ẑ to ``rho``; a NaN
+    frame never does."""
+    with np.errstate(invalid="ignore"):
+        return (np.sum(a_x3x3[..., :, 0] * b_x3x3[..., :, 0], -1) >= rho) & \
+               (np.sum(a_x3x3[..., :, 2] * b_x3x3[..., :, 2], -1) >= rho)
+
+
 def pair_repeatability(orient, frag_i, frag_j, t_gt, match_dist, rho=RHO):
     """``orient(fragment, indices) -> [K, 3, 3]``; one pair's keypoints, flags and scores."""
     ki, kj = correspondences(frag_i, frag_j, t_gt, match_dist)
     fi = np.asarray(orient(frag_i, ki), np.float64).reshape(-1, 3, 3)
     fj = t_gt[:3, :3] @ np.asarray(orient(frag_j, kj), np.float64).reshape(-1, 3, 3)
-    with np.errstate(invalid="ignore"):
-        ok = (np.sum(fi[:, :, 0] * fj[:, :, 0], 1) >= rho) & \
-             (np.sum(fi[:, :, 2] * fj[:, :, 2], 1) >= rho)
+    ok = repeatable(fi, fj, rho)
     angles = frame_angles_deg(fi, fj)
     return {"keypoints": ki, "repeatable": ok, "n": int(len(ki)),
             "rep": float(ok.mean()) if len(ki) else float("nan"),

@@ -4,19 +4,15 @@ voted frame). Each builds ``(first, again)`` of :class:`~sphere_jax.registration
 (the vote itself) from ``(radius, bundles, chunk, whiten)``."""
 from __future__ import annotations
 
-import jax
 import numpy as np
 
-from sphere_jax import parallel
 from sphere_jax.bundles import inference, whitening
-from sphere_jax.features import builders as method_lib
-from sphere_jax.features import descriptors, lrfs
-from sphere_jax.models import lead as lead_model
+from sphere_jax.features import builders, descriptors, lrfs, modes
 
 
 def shot_vote(radius, bundles=None, chunk=None, whiten=True):
     def first(f):
-        nb = method_lib.neighbourhoods(f, f.keypoints, radius)
+        nb = builders.neighbourhoods(f, f.keypoints, radius)
         frames = lrfs.shot_lrf(nb)
         return descriptors.shot(nb, f.normals, frames), frames, None
 
@@ -26,9 +22,9 @@ def shot_vote(radius, bundles=None, chunk=None, whiten=True):
         # Only the last scan's supports are kept (its candidate frames come one after
         # another): a scene's scans would hold them all.
         if last.get("scan") is not f:
-            last.update(scan=f, nb=method_lib.neighbourhoods(f, f.keypoints, radius))
+            last.update(scan=f, nb=builders.neighbourhoods(f, f.keypoints, radius))
         nb = last["nb"]
-        return descriptors.shot(nb, f.normals, method_lib.one_frame(rotation_3x3,
+        return descriptors.shot(nb, f.normals, builders.one_frame(rotation_3x3,
                                                                      len(f.keypoints)))
     return first, again
 
@@ -36,7 +32,6 @@ def shot_vote(radius, bundles=None, chunk=None, whiten=True):
 def lead_vote(radius, bundles, chunk=None, whiten=True):
     lead = inference.cached_bundle(bundles["lead"])
     compass = inference.cached_bundle(bundles["compass"])
-    turn = jax.jit(lead_model.canonical_descriptors)
     # The first pass matches in Compass's frames (their whitening); the second in one frame
     # per scan, where no map is in a canonical pose: the rotation average of the statistics.
     first_white = lead.whitenings.get("compass") if whiten else None
@@ -48,10 +43,7 @@ def lead_vote(radius, bundles, chunk=None, whiten=True):
         return desc_KxD if w is None or not len(desc_KxD) else w.apply(desc_KxD)
 
     def turned(maps_KxD, frames_Kx3x3):
-        side = round(maps_KxD.shape[1] ** (1 / 3))
-        cubes = maps_KxD.reshape(len(maps_KxD), side, side, side)
-        return parallel.stream_chunked(turn, lambda a, b: (cubes[a:b], frames_Kx3x3[a:b]),
-                                       len(cubes), chunk)
+        return modes.turned(maps_KxD, frames_Kx3x3[:, None], chunk)[:, 0]
 
     def first(f):
         k = len(f.keypoints)
@@ -60,18 +52,18 @@ def lead_vote(radius, bundles, chunk=None, whiten=True):
         # An undescribed keypoint's map is a NaN row: every turn keeps it one (each map is
         # turned on its own), and it never matches.
         maps, valid = lead.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
-                                    frames=method_lib.one_frame(np.eye(3), k),
+                                    frames=builders.one_frame(np.eye(3), k),
                                     on_invalid="mask")
-        maps = method_lib.masked((maps, valid), np.nan)
+        maps = builders.masked((maps, valid), np.nan)
         frames, oriented = compass.orient(f.points, f.keypoints, radius=radius, chunk=chunk,
                                           on_invalid="mask")
-        frames = method_lib.masked((frames, oriented), np.eye(3))
+        frames = builders.masked((frames, oriented), np.eye(3))
         desc = turned(maps, frames) if k else maps
         frames[~(valid & oriented)] = np.nan          # no proposal from an undescribed keypoint
         return white(first_white, desc), frames, maps
 
     def again(f, maps, rotation_3x3):
         if len(maps) and not np.allclose(rotation_3x3, np.eye(3)):
-            maps = turned(maps, method_lib.one_frame(rotation_3x3, len(maps)))
+            maps = turned(maps, builders.one_frame(rotation_3x3, len(maps)))
         return white(shared_white, maps)
     return first, again
