@@ -1,71 +1,53 @@
-"""Publish evaluation runs: ``docs/results.md``, the README's headline table and the model cards
-are generated from the runs' own files, so a rerun updates them.
+"""Publish evaluation runs: every generated document is rendered from the committed records
+of the runs (``docs/records``, :mod:`experiments.records`), so that a figure stands where its
+record stands and nowhere else.
 
     python -m experiments.publish RUN_DIR [RUN_DIR ...] [--headline=RUN_DIR]
-        [--adaptation=BEFORE_RUN:AFTER_RUN ...] [--targets=MATCH,LOMATCH,ROTATED,LRF,LRF_BUNNY]
-        [--classification=RUN_DIR] [--drop=SECTION_KEY ...] [--fresh]
+        [--adaptation=BEFORE_RUN:AFTER_RUN ...]
+        [--targets=MATCH,LOMATCH,ROTATED,LRF,LRF_BUNNY[,GT_FRAMES]]
+        [--classification=RUN_DIR] [--drop=NAME ...] [--fresh]
+    python -m experiments.publish --check
 
-Each RUN_DIR is an ``experiments.evaluate`` workdir (its ``run.json`` says the command, the
-bundles and the date; its markdown and CSV hold the tables, a registration run's pair votes in
-``votes.md``). ``docs/results.md`` has one section per run, keyed by its folder: a run published
-again replaces its own section, the others stay but those ``--drop`` names (``--fresh``: only
-the runs given, in their order). ``--headline`` (a registration run) replaces the table between
-the README's ``headline`` markers; every bundle a run used gets the run's table in its model
-card (:func:`sphere_jax.bundles.model_card.add_evaluation`). ``--adaptation`` pairs a run with the
-shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF run's own
-``adapt_steps``): a section compares them method by method and says what each bundle adapted on,
-for how long. ``--targets`` fills the README's ``targets`` block: the accuracy targets, measured
-and met or not (:mod:`experiments.standing`); ``--classification`` its
-``classification-targets`` block from an ``eval_classification`` run.
+Each RUN_DIR is an ``experiments.evaluate`` workdir: its ``run.json`` (command, config,
+bundles, date) and CSV tables become its record ``docs/records/<folder name>/``, replacing an
+older record of that name, and its section of ``docs/results.md`` (one table per run, methods
+by metrics: the task's ``summary``). ``--headline`` (a registration run) fills the README's
+``headline`` block; ``--targets`` its ``targets`` block (:mod:`experiments.standing`),
+``--classification`` its ``classification-targets`` block. ``--adaptation`` compares a run
+with the shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF
+run's own ``adapt_steps``), method by method, and records the comparison. ``--drop`` removes a
+record and its section, ``--fresh`` keeps only the runs given.
+
+Rendered from the records: docs/results.md, the README's blocks, the evaluations on the model
+cards of the bundles in the package (a record's bundle fingerprint names the bundle it
+measured) and the weights index. ``--check`` renders all of them and fails on any
+difference from the files (a hand edit, or a record not published).
 """
 from __future__ import annotations
 
-import glob
-import json
 import os
 import re
+from typing import NamedTuple
 
-from experiments import cli
+from experiments import cli, records, standing
+from sphere_jax import paths
+from sphere_jax.bundles import model_card, store
 from sphere_jax.data.readers import io
-from sphere_jax.eval import repeatability, report
+from sphere_jax.eval import report, repeatability, tasks
+from sphere_jax.models import shipped
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-RESULTS = os.path.join(REPO, "docs", "results.md")
-README = os.path.join(REPO, "README.md")
+REPO = records.REPO
 HEADLINE = (("fmr", "FMR", "{:.2f}"), ("inlier_ratio", "inlier ratio", "{:.3f}"),
             ("n_correct", "correct / pair", "{:.0f}"), ("rr", "RR", "{:.2f}"),
             ("ms_per_keypoint", "ms / keypoint", "{:.2f}"))
-# A description time measured while other processes used more than this share of the cores
-# is marked as shared (sphere_jax/eval/timing.py).
-SHARED = 0.1
-# Tables a task writes beside its main one that its section shows too: the pair vote's rotation
-# errors say how far a voted method's frames are from the truth, pair by pair.
-BESIDE = {"registration": ("votes",)}
+BLOCKS = ("headline", "targets", "classification-targets")
 
 
-def stem_of(record) -> str:
-    """The file stem of a run's tables (``<stem>.md``, ``<stem>.csv``)."""
-    return {"registration": "results", "lrf": "lrf_results"}.get(record["task"], record["task"])
-
-
-def read_run(run_dir):
-    """``(record, markdown)`` of an evaluation workdir."""
-    path = os.path.join(run_dir, "run.json")
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"{run_dir} has no run.json: not an experiments.evaluate "
-                                f"workdir (or one written before runs recorded themselves)")
-    with open(path) as f:
-        record = json.load(f)
-    md_path = os.path.join(run_dir, f"{stem_of(record)}.md")
-    if not os.path.isfile(md_path):
-        found = sorted(glob.glob(os.path.join(run_dir, "*.md")))
-        md_path = found[0] if found else None
-    markdown = open(md_path).read() if md_path else ""
-    for stem in BESIDE.get(record.get("task"), ()):
-        path = os.path.join(run_dir, f"{stem}.md")
-        if os.path.isfile(path):
-            markdown = markdown.rstrip() + "\n\n" + open(path).read()
-    return record, markdown
+class Outputs(NamedTuple):
+    """Where the generated documents go."""
+    results: str = os.path.join(REPO, "docs", "results.md")
+    readme: str = os.path.join(REPO, "README.md")
+    weights: str = paths.weights_root()        # each bundle's card, and the index
 
 
 def data_of(record) -> str:
@@ -93,38 +75,10 @@ def stamp(record) -> str:
             f"{took}.")
 
 
-def headline_table(run_dir) -> str:
+def headline_table(folder) -> str:
     """Method rows of a registration run's means: FMR, inlier ratio, correct matches, RR,
     description time."""
-    rows = report.read_means(run_dir, "results").values()
-    out = ["| method | " + " | ".join(h for _, h, _ in HEADLINE) + " |",
-           "|---" * (len(HEADLINE) + 1) + "|"]
-    ms = [key for key, _, _ in HEADLINE].index("ms_per_keypoint")
-    shared = False
-    for r in rows:
-        cells = []
-        for key, _, fmt in HEADLINE:
-            try:
-                cells.append(fmt.format(float(r[key])))
-            except (TypeError, ValueError):
-                cells.append("")
-        others = _number(r.get("others_cpu"))
-        if others is not None and others > SHARED and cells[ms]:
-            cells[ms] += f" (shared {others:.0%})"
-            shared = True
-        out.append(f"| {r['method']} | " + " | ".join(cells) + " |")
-    if shared:
-        out += ["", "shared N %: other processes used N % of the cores while the method "
-                "described, so its time is longer than alone."]
-    return "\n".join(out)
-
-
-def _number(text) -> float | None:
-    try:
-        value = float(text)
-    except (TypeError, ValueError):
-        return None
-    return value if value == value else None       # NaN: not recorded
+    return report.means_table(report.read_means(folder, "results"), HEADLINE)
 
 
 def diagnostic(record) -> bool:
@@ -152,18 +106,21 @@ def heading(record, title) -> str:
             + (", with ground-truth-frame diagnostics" if diagnostic(record) else ""))
 
 
-def section(record, markdown) -> str:
-    title, body = split_title(record, markdown)
-    body = re.sub(r"^# ", "### ", body, flags=re.M)
-    return f"## {heading(record, title)}\n\n{stamp(record)}\n{body}\n"
+def run_section(folder):
+    """``(heading, section, tables, record)`` of a run record: its task's summary (the
+    tables) under a heading that names its data, stamped with its command and bundles."""
+    record = tasks.read_record(folder)
+    title, body = split_title(record, tasks.task(record["task"]).summary(folder))
+    name, body = heading(record, title), body.strip()
+    return name, f"## {name}\n\n{stamp(record)}\n\n{body}\n", body, record
 
 
-# What an adaptation section compares, per task: (column, label, format); the change is that
-# of the first.
+# What a comparison shows, per task: (column, label, format); the change is that of the first.
 COMPARED = {"registration": (("inlier_ratio", "inlier ratio", "{:.3f}"),
                              ("n_correct", "correct / pair", "{:.0f}"), ("rr", "RR", "{:.2f}")),
             "lrf": (("rep", "repeatability", "{:.3f}"),
                     ("mean_angle_deg", "mean angle (degrees)", "{:.1f}"))}
+STEMS = {"registration": "results", "lrf": "lrf_results"}
 
 
 def adapted_bundles(before, after, after_dir):
@@ -182,7 +139,6 @@ def adapted_bundles(before, after, after_dir):
 
 def adaptation_line(kind, path) -> str:
     """What an adapted bundle did: steps, minutes, the weights kept, the scans and scale."""
-    from sphere_jax.bundles import model_card, store
     config = store.read_config(path)
     budget = float(config.train.get("time_budget_s", 0) or 0) / 60
     lines = model_card.read_metrics(os.path.join(path, model_card.METRICS))
@@ -199,7 +155,6 @@ def adaptation_line(kind, path) -> str:
 def budgets(kinds: dict) -> str:
     """The adapted bundles' time budgets for a title: ``, 10 min each`` or ``, compass 10 min,
     lead 5 min``; empty when none had one (a step count decided)."""
-    from sphere_jax.bundles import store
     minutes = {k: float(store.read_config(p).train.get("time_budget_s", 0) or 0) / 60
                for k, p in sorted(kinds.items())}
     if not any(minutes.values()):
@@ -210,97 +165,70 @@ def budgets(kinds: dict) -> str:
                             for k, m in minutes.items())
 
 
-def adaptation_section(before_dir, after_dir) -> str:
-    """A run with the shipped bundles against the same run with adapted ones (registration:
-    inlier ratio, correct matches, RR; LRF: repeatability, mean angle), method by method, and
-    each adapted bundle's budget, steps and scans (read from the bundle)."""
-    (before, _), (after, md) = read_run(before_dir), read_run(after_dir)
+def comparison(before_dir, after_dir) -> dict:
+    """The record of a run with the shipped bundles against the same run with adapted ones:
+    both runs' commands, dates and mean rows of :data:`COMPARED`, and what each adapted bundle
+    did (read from the bundle, which the record outlives)."""
+    before, after = tasks.read_record(before_dir), tasks.read_record(after_dir)
     if before["task"] != after["task"] or before["task"] not in COMPARED:
         raise ValueError(f"--adaptation compares two runs of one task among "
                          f"{', '.join(COMPARED)}; got {before['task']} and {after['task']}")
-    compared = COMPARED[before["task"]]
-    old, new = (report.read_means(d, stem_of(r)) for d, r in ((before_dir, before),
-                                                               (after_dir, after)))
-    cells = lambda r, key, fmt: fmt.format(float(r[key])) if r and r.get(key) else "–"
+    task = before["task"]
+    old, new = (report.read_means(d, STEMS[task]) for d in (before_dir, after_dir))
+    keys = [key for key, _, _ in COMPARED[task]]
+    values = lambda row: {k: report.number(row.get(k)) if row else None for k in keys}
+    rows = []
+    for method, b in old.items():
+        a, first = new.get(method), keys[0]
+        change = (float(a[first]) / float(b[first]) - 1 if a and report.number(a.get(first))
+                  is not None and float(b[first]) > 0 else None)
+        rows.append({"method": method, "before": values(b), "after": values(a),
+                     "change": change})
+    kinds = adapted_bundles(before, after, after_dir)
+    title = split_title(after, tasks.task(task).summary(after_dir))[0]
+    title = title.split(repeatability.ADAPTED)[0]                # said below instead
+    names = sorted(kinds)
+    return {"task": task, "title": title, "data": data_of(after),
+            "adapted": " and ".join(filter(None, [", ".join(names[:-1]), names[-1]]))
+            if names else "none", "budgets": budgets(kinds),
+            "lines": [adaptation_line(kind, path) for kind, path in kinds.items()],
+            "before": {"command": before.get("command"), "date": before["date"]},
+            "after": {"command": after.get("command"), "date": after["date"]},
+            "rows": rows}
+
+
+def comparison_section(c: dict) -> str:
+    """A comparison record as markdown: the methods' figures before | after, the change of the
+    first, and the adapted bundles."""
+    compared = COMPARED[c["task"]]
     head = [f"{label}: before | after" + (" | change" if i == 0 else "")
             for i, (_, label, _) in enumerate(compared)]
     out = ["| method | " + " | ".join(head) + " |", "|---" * (2 * len(compared) + 2) + "|"]
-    first = compared[0][0]
-    for method, b in old.items():
-        a = new.get(method)
-        change = f"{float(a[first]) / float(b[first]) - 1:+.0%}" if a and a.get(first) and \
-            float(b[first]) > 0 else "–"
+    cell = lambda v, fmt: "–" if v is None else fmt.format(v)
+    for r in c["rows"]:
         row = []
         for i, (key, _, fmt) in enumerate(compared):
-            row += [cells(b, key, fmt), cells(a, key, fmt)] + ([change] if i == 0 else [])
-        out.append(f"| {method} | " + " | ".join(row) + " |")
-    kinds = adapted_bundles(before, after, after_dir)
-    adapted = [adaptation_line(kind, path) for kind, path in kinds.items()]
-    title = split_title(after, md)[0].split(repeatability.ADAPTED)[0]   # said below instead
+            row += [cell(r["before"].get(key), fmt), cell(r["after"].get(key), fmt)]
+            row += [cell(r["change"], "{:+.0%}")] if i == 0 else []
+        out.append(f"| {r['method']} | " + " | ".join(row) + " |")
+    title = c["title"]
     if title[1:2].islower():                                 # "registration", not "lRF"
         title = title[0].lower() + title[1:]
-    names = sorted(kinds)
-    listed = " and ".join(filter(None, [", ".join(names[:-1]), names[-1]])) if names else "none"
-    return (f"## Adaptation without labels, {listed} adapted{budgets(kinds)}: {title} on "
-            f"{data_of(after)}"
-            f"\n\nBefore: `{before.get('command')}`\n\nAfter: `{after.get('command')}`\n\n"
-            f"Adapted bundles (no pose or ground truth read): " + "; ".join(adapted)
-            + f". Runs {before['date']} and {after['date']}.\n\n" + "\n".join(out) + "\n")
+    return (f"## Adaptation without labels, {c['adapted']} adapted{c['budgets']}: {title} on "
+            f"{c['data']}\n\nBefore: `{c['before']['command']}`\n\nAfter: "
+            f"`{c['after']['command']}`\n\nAdapted bundles (no pose or ground truth read): "
+            + "; ".join(c["lines"]) + f". Runs {c['before']['date']} and "
+            f"{c['after']['date']}.\n\n" + "\n".join(out) + "\n")
 
 
-def same_bundle(recorded, path) -> bool:
-    """Whether the bundle at ``path`` is the one a run recorded (its fingerprint; for runs
-    that recorded none, its steps): a card lists only its own bundle's evaluations."""
-    from sphere_jax.bundles import store
-    if recorded.get("fingerprint"):
-        return recorded["fingerprint"] == store.fingerprint(path)
-    return recorded.get("steps_done") == store.steps_done(store.read_config(path))
-
-
-def readme_block(readme, name, content):
-    """Replace the README's generated block ``name`` (between its begin and end markers)."""
+def replace_block(text, name, content) -> str:
+    """``text`` (a README) with its generated block ``name`` (between its begin and end
+    markers) holding ``content``."""
     begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
-    text = open(readme).read()
     if begin not in text or end not in text:
-        raise ValueError(f"{readme} has no {begin} ... {end} block")
-    text = re.sub(re.escape(begin) + ".*?" + re.escape(end),
+        raise ValueError(f"the README has no {begin} ... {end} block")
+    return re.sub(re.escape(begin) + ".*?" + re.escape(end),
                   lambda _: f"{begin}\n{content}\n{end}", text, flags=re.S)
-    io.atomic_write(readme, text.encode())             # the old README or the new, never half
-
-
-SECTION = re.compile(r"^<!-- section: (.+?) -->$", re.M)
-ADAPTATION = "adaptation "          # the key prefix of an adaptation section
-
-
-def run_key(run_dir) -> str:
-    """A run's section key in ``docs/results.md``: its folder, relative to the repository
-    when inside it (so that ``runs/x`` and its absolute path name one section)."""
-    path = os.path.abspath(run_dir)
-    inside = os.path.commonpath([path, REPO]) == REPO
-    return os.path.relpath(path, REPO) if inside else path
-
-
-def merged_sections(old_text, sections, drop=()):
-    """``[(key, markdown)]``: the sections of ``old_text`` (a results file this module wrote)
-    in their order, each replaced by its namesake in ``sections``, those named in ``drop``
-    left out (a :class:`ValueError` for one it does not hold). A new adaptation section goes
-    after the last adaptation section, where a reader finds the others; other new keys are
-    appended."""
-    found = SECTION.split(old_text)[1:]           # [key, text, key, text, ...]
-    merged = {k: t.strip() for k, t in zip(found[::2], found[1::2])}
-    missing = [k for k in drop if k not in merged]
-    if missing:
-        raise ValueError(f"--drop: no section {missing[0]!r} (there are: {', '.join(merged)})")
-    for key in drop:
-        del merged[key]
-    order = list(merged)
-    for key, text in sections:
-        if key not in merged:
-            kin = [i for i, k in enumerate(order) if k.startswith(ADAPTATION)]
-            at = kin[-1] + 1 if key.startswith(ADAPTATION) and kin else len(order)
-            order.insert(at, key)
-        merged[key] = text.strip()
-    return [(k, merged[k]) for k in order]
 
 
 def contents(sections):
@@ -320,56 +248,118 @@ def contents(sections):
     return items
 
 
-def publish(run_dirs, headline=None, results=RESULTS, readme=README, adaptations=(),
-            targets=(), fresh=False, drop=(), classification=None):
-    """Write the given runs' sections into ``results`` — replacing those runs' sections
-    there and keeping the others but those keyed in ``drop`` (``fresh``: only the given
-    ones), so that one rerun updates its own table — then the README's headline and targets
-    blocks and the model cards. The headline run is published as a section too, so that the
-    README, docs/results.md and the model cards never show two runs of one command."""
-    if headline and run_key(headline) not in {run_key(d) for d in run_dirs}:
-        run_dirs = [headline, *run_dirs]
-    runs = [(d, *read_run(d)) for d in run_dirs]
-    sections = [(run_key(d), section(record, md)) for d, record, md in runs]
-    # An adaptation section is its adapted run's: published again with another 'before' run,
-    # it replaces the one it had.
-    sections += [(f"{ADAPTATION}{run_key(after)}", adaptation_section(before, after))
-                 for before, after in adaptations]
-    if not fresh and os.path.isfile(results):
-        sections = merged_sections(open(results).read(), sections, drop)
+def bundles_in(weights_root) -> dict:
+    """``{fingerprint: bundle folder}`` of the bundles under ``weights_root``."""
+    out = {}
+    for folder in sorted(os.listdir(weights_root)) if os.path.isdir(weights_root) else ():
+        path = os.path.join(weights_root, folder, "bundle")
+        if store.is_bundle(path):
+            out[store.fingerprint(path)] = path
+    return out
+
+
+def render(root=records.ROOT, outputs=Outputs()) -> dict:
+    """``{path: text}`` of every document the records generate: docs/results.md, the
+    README (its blocks filled), the weights index and, for each bundle under the weights
+    root, its ``evaluations.json`` and model card."""
+    index = records.read_index(root)
+    folder = lambda name: records.folder(name, root)
+    sections, cards = [], {}
+    prints = bundles_in(outputs.weights)
+    for name in index["sections"]:
+        if name.startswith(records.ADAPTATION):
+            sections.append((name, comparison_section(records.read_comparison(name, root))))
+            continue
+        title, text, body, record = run_section(folder(name))
+        sections.append((name, text))
+        for b in record.get("bundles", {}).values():
+            if b.get("fingerprint") in prints:
+                entries = cards.setdefault(prints[b["fingerprint"]], {})
+                if title in entries:
+                    raise ValueError(f"two records give {title!r} for one bundle: drop one")
+                entries[title] = {"command": record.get("command") or "", "table": body,
+                                  "date": record["date"]}
     parts = ["# Results", "",
-             "Generated by `python -m experiments.publish` from the evaluation runs' own files "
-             "(`run.json`, the tables' markdown and CSV); do not edit. Each section names the "
-             "command and the bundles that produced it.", "", *contents(sections), ""]
-    for key, text in sections:
-        parts += [f"<!-- section: {key} -->", text.strip(), ""]
-    os.makedirs(os.path.dirname(results), exist_ok=True)
-    io.atomic_write(results, ("\n".join(parts).rstrip() + "\n").encode())
+             "Generated by `python -m experiments.publish` from the runs' records in "
+             "`docs/records` (their `run.json` and CSV tables); do not edit. Each section names "
+             "the command and the bundles that produced it.", "", *contents(sections), ""]
+    for name, text in sections:
+        parts += [f"<!-- section: {name} -->", text.strip(), ""]
+    out = {outputs.results: "\n".join(parts).rstrip() + "\n"}
+    readme = open(outputs.readme).read()
+    if index["headline"]:
+        record = tasks.read_record(folder(index["headline"]))
+        readme = replace_block(readme, "headline", f"{headline_table(folder(index['headline']))}"
+                                                   f"\n\n{stamp(record)}")
+    if index["targets"]:
+        table = standing.table(*map(folder, index["targets"]))
+        names = ", ".join(index["targets"])
+        readme = replace_block(readme, "targets", f"{table}\n\nFrom the records {names} "
+                               f"(docs/records; their commands and bundles: docs/results.md).")
+    if index["classification"]:
+        readme = replace_block(
+            readme, "classification-targets",
+            f"{standing.classification_table(folder(index['classification']))}\n\nFrom the "
+            f"record {index['classification']} (its command, data and bundles: "
+            f"docs/results.md).")
+    out[outputs.readme] = readme
+    for path in prints.values():
+        entries = cards.get(path, {})
+        out[os.path.join(path, model_card.EVALUATIONS)] = model_card.evaluations_text(entries)
+        out[os.path.join(path, model_card.CARD)] = model_card.text(path, entries)
+    if os.path.isdir(outputs.weights):
+        out[os.path.join(outputs.weights, "README.md")] = model_card.index_text(
+            outputs.weights, shipped.SHIPPED)
+    return out
+
+
+def differences(rendered: dict) -> list[str]:
+    """The paths of ``rendered`` whose file on disk differs (or is absent)."""
+    def on_disk(path):
+        if not os.path.isfile(path):
+            return None
+        with open(path) as f:
+            return f.read()
+    return [p for p, text in rendered.items() if on_disk(p) != text]
+
+
+def publish(run_dirs=(), headline=None, adaptations=(), targets=(), classification=None,
+            fresh=False, drop=(), root=records.ROOT, outputs=Outputs()) -> list[str]:
+    """Record the given runs (and comparisons ``(before_dir, after_dir)``), update the index
+    — a run published again keeps its place, a new one goes last (a comparison after the
+    other comparisons), ``drop`` names records to remove, ``fresh`` keeps only these — and
+    write every document the records render. Returns the paths that changed."""
+    index = records.read_index(root)
+    missing = [n for n in drop if n not in index["sections"]]
+    if missing:
+        raise ValueError(f"--drop: no record {missing[0]!r} (there are: "
+                         f"{', '.join(index['sections'])})")
+    os.makedirs(root, exist_ok=True)
+    given = [records.save(d, root) for d in run_dirs]
     if headline:
-        record, _ = read_run(headline)
-        readme_block(readme, "headline", f"{headline_table(headline)}\n\n{stamp(record)}")
+        index["headline"] = records.save(headline, root)
     if targets:
-        from experiments import standing
-        readme_block(readme, "targets", f"{standing.table(*targets)}\n\n`python -m "
-                     f"experiments.publish ... --targets={','.join(targets)}` (the runs' "
-                     f"commands and bundles: docs/results.md).")
+        index["targets"] = [records.save(d, root) for d in targets]
     if classification:
-        from experiments import standing
-        readme_block(readme, "classification-targets",
-                     f"{standing.classification_table(classification)}\n\n`python -m "
-                     f"experiments.publish ... --classification={classification}` (its "
-                     f"command, data and bundles: docs/results.md).")
-    from sphere_jax.bundles import model_card
-    for _, record, md in runs:
-        for kind, b in record.get("bundles", {}).items():
-            path = b["path"] if os.path.isabs(b["path"]) else os.path.join(REPO, b["path"])
-            if os.path.isdir(path) and same_bundle(b, path):
-                # One entry per task and data (redkitchen and the bunny share a title); a
-                # diagnostic run beside the benchmark, not instead of it.
-                title, body = split_title(record, md)
-                model_card.add_evaluation(path, heading(record, title), body,
-                                          record.get("command") or "", record["date"])
-    return results
+        index["classification"] = records.save(classification, root)
+    compared = [records.save_comparison(records.name_of(after),
+                                        comparison(before, after), root)
+                for before, after in adaptations]
+    order = [] if fresh else [n for n in index["sections"] if n not in drop]
+    for name in [*given, index["headline"], *index["targets"], index["classification"]]:
+        if name and name not in order:
+            order.append(name)
+    for name in compared:
+        if name not in order:
+            kin = [i for i, n in enumerate(order) if n.startswith(records.ADAPTATION)]
+            order.insert(kin[-1] + 1 if kin else len(order), name)
+    index["sections"] = order
+    records.write_index(index, root)
+    rendered = render(root, outputs)
+    changed = differences(rendered)
+    for path in changed:
+        io.atomic_write(path, rendered[path].encode())
+    return changed
 
 
 def main(argv=None):
@@ -380,36 +370,50 @@ def main(argv=None):
                         help="BEFORE_RUN:AFTER_RUN, the same registration or LRF run with the "
                              "shipped and with adapted bundles")
     parser.add_argument("--targets", default=None,
-                        help="MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY[,LRF_KITCHEN_ADAPTED,"
-                             "LRF_BUNNY_ADAPTED]: the redkitchen registration runs and the LRF "
-                             "runs of the README's targets table (experiments/standing.py)")
+                        help="MATCH,LOMATCH,ROTATED,LRF_KITCHEN,LRF_BUNNY[,GT_FRAMES[,"
+                             "LRF_KITCHEN_ADAPTED,LRF_BUNNY_ADAPTED]]: the runs of the README's "
+                             "targets table (experiments/standing.py)")
     parser.add_argument("--classification", default=None,
                         help="the eval_classification run of the README's classification "
                              "targets (experiments/standing.py)")
     parser.add_argument("--drop", action="append", default=[],
-                        help="a section of docs/results.md to remove, by its key (the "
-                             "'<!-- section: KEY -->' line): a run that no longer stands")
+                        help="a record to remove with its section, by name (docs/records)")
     parser.add_argument("--fresh", action="store_true",
-                        help="write only the given runs' sections (default: replace those and "
-                             "keep the file's other sections)")
+                        help="keep only the given runs' sections (default: replace those and "
+                             "keep the others)")
+    parser.add_argument("--check", action="store_true",
+                        help="render every generated document from the records and fail on "
+                             "any difference from the files")
     args = parser.parse_args(argv)
     targets = args.targets.split(",") if args.targets else []
-    if targets and len(targets) not in (5, 7):
+    if targets and len(targets) not in (5, 6, 8):
         parser.error(f"--targets takes five runs, MATCH,LOMATCH,ROTATED,LRF_KITCHEN,"
-                     f"LRF_BUNNY, and optionally the two LRF runs with adaptation; got "
-                     f"{args.targets}")
-    if not (args.runs or args.adaptation or targets or args.headline or args.drop
-            or args.classification):
-        parser.error("nothing to publish: give run folders, --adaptation, --targets, "
-                     "--classification, --headline or --drop")
+                     f"LRF_BUNNY, optionally GT_FRAMES and then the two LRF runs with "
+                     f"adaptation; got {args.targets}")
     pairs = [tuple(a.split(":")) for a in args.adaptation]
     if any(len(p) != 2 for p in pairs):
         parser.error(f"--adaptation takes BEFORE_RUN:AFTER_RUN, got {args.adaptation}")
+    asked = (args.runs or pairs or targets or args.headline or args.drop or args.classification)
+    if args.check and asked:
+        parser.error("--check takes no runs: it renders the committed records")
+    if not (asked or args.check):
+        parser.error("nothing to publish: give run folders, --adaptation, --targets, "
+                     "--classification, --headline or --drop (or --check)")
     with cli.refusals():
         try:
-            print(publish(args.runs, args.headline, adaptations=pairs, targets=targets,
-                          fresh=args.fresh, drop=args.drop,
-                          classification=args.classification))
+            if args.check:
+                stale = differences(render())
+                for path in stale:
+                    print(f"differs from its records: {os.path.relpath(path, REPO)}")
+                if stale:
+                    cli.fail("generated documents differ from docs/records: run "
+                             "`python -m experiments.publish` (with no hand edits)")
+                print(f"every generated document equals its records "
+                      f"({len(records.read_index()['sections'])} sections)")
+                return
+            for path in publish(args.runs, args.headline, pairs, targets,
+                                args.classification, args.fresh, args.drop):
+                print(f"wrote {os.path.relpath(path, REPO)}")
         except (FileNotFoundError, ValueError) as e:
             cli.fail(e)
 

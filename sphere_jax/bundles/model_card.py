@@ -5,18 +5,17 @@
 * ``config.json`` and ``training_data.json`` (the network, the recipe, the data),
 * ``metrics.jsonl`` (the training log: steps, wall time, the validation curve), which
   training copies into the bundle, and
-* ``evaluations.json``: the figures evaluations add with :func:`add_evaluation` (a table, the
-  command and the date of the run that produced it).
+* ``evaluations.json``: the published evaluations of this bundle (a table, the command and
+  the date of each run), which ``experiments.publish`` sets from docs/records.
 
-Training calls :func:`write` when it writes a bundle; evaluations call :func:`add_evaluation`,
-which renders the card again. ``python -m experiments.model_card BUNDLE`` re-renders one.
+Training calls :func:`write` when it writes a bundle; publishing calls
+:func:`set_evaluations`, which renders the card again. ``python -m experiments.model_card
+BUNDLE`` re-renders one.
 """
 from __future__ import annotations
 
-import datetime
 import json
 import os
-import re
 
 from sphere_jax import files
 from sphere_jax.bundles import store
@@ -77,28 +76,16 @@ def plot_curve(lines, path, title):
         fig.savefig(tmp)
 
 
-def _workdir(command):
-    """The ``--workdir`` a recorded evaluation command names (None without one)."""
-    found = re.search(r"--workdir[= ](\S+)", command or "")
-    return found.group(1) if found else None
+def evaluations_text(evaluations: dict) -> str:
+    """``evaluations.json`` of ``{name: {'command', 'table', 'date'}}``."""
+    return json.dumps(evaluations, indent=1, sort_keys=True) + "\n"
 
 
-def add_evaluation(bundle_dir, name, table_markdown, command, date=None):
-    """Record an evaluation's figures for this bundle — replacing an earlier run of ``name``
-    and any earlier run in the same workdir (rerun on moved data, it has another name) —
-    and render the card again."""
-    path = os.path.join(str(bundle_dir), EVALUATIONS)
-    evaluations = {}
-    if os.path.isfile(path):
-        with open(path) as f:
-            evaluations = json.load(f)
-    workdir = _workdir(command)
-    if workdir:
-        evaluations = {k: v for k, v in evaluations.items()
-                       if _workdir(v.get("command")) != workdir}
-    evaluations[name] = {"command": command, "table": table_markdown,
-                         "date": date or datetime.date.today().isoformat()}
-    store.write_json(path, json.dumps(evaluations, indent=1, sort_keys=True))
+def set_evaluations(bundle_dir, evaluations: dict):
+    """Replace the bundle's evaluations (``{name: {'command', 'table', 'date'}}``, from the
+    published records: ``experiments.publish``) and render the card again."""
+    files.atomic_write(os.path.join(str(bundle_dir), EVALUATIONS),
+                       evaluations_text(evaluations))
     render(bundle_dir)
 
 
@@ -116,6 +103,27 @@ def write(bundle_dir, metrics_path, command=None):
 
 def render(bundle_dir):
     """Write ``MODEL_CARD.md`` (and the curve's PNG) from the bundle's files."""
+    bundle_dir = str(bundle_dir)
+    config = store.read_config(bundle_dir)
+    lines = read_metrics(os.path.join(bundle_dir, METRICS))
+    if validation_curve(lines)[0]:
+        plot_curve(lines, os.path.join(bundle_dir, CURVE),
+                   f"{config.model}:{config.get('size', '')}, {store.steps_done(config)} steps")
+    files.atomic_write(os.path.join(bundle_dir, CARD), text(bundle_dir))
+    return os.path.join(bundle_dir, CARD)
+
+
+def read_evaluations(bundle_dir) -> dict:
+    path = os.path.join(str(bundle_dir), EVALUATIONS)
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
+
+
+def text(bundle_dir, evaluations=None) -> str:
+    """``MODEL_CARD.md`` of the bundle, with ``evaluations`` (default: its
+    ``evaluations.json``)."""
     bundle_dir = str(bundle_dir)
     config = store.read_config(bundle_dir)
     data = store.read_training_data(bundle_dir)
@@ -173,18 +181,13 @@ def render(bundle_dir):
         for i, s in enumerate(steps):
             out += [f"| {s} | " + " | ".join(f"{val[k][i]:.4g}" if val[k][i] is not None
                                               else "" for k in keys) + " |"]
-        plot_curve(lines, os.path.join(bundle_dir, CURVE),
-                   f"{config.model}:{config.get('size', '')}, {done} steps")
-    evaluations_path = os.path.join(bundle_dir, EVALUATIONS)
-    if os.path.isfile(evaluations_path):
-        with open(evaluations_path) as f:
-            evaluations = json.load(f)
+    evaluations = read_evaluations(bundle_dir) if evaluations is None else evaluations
+    if evaluations:
         out += ["", "## Evaluations", ""]
         for name, ev in sorted(evaluations.items()):
             out += [f"### {name}", "", f"{ev['date']}:", "", "```bash", ev["command"], "```",
                     "", ev["table"].strip(), ""]
-    files.atomic_write(os.path.join(bundle_dir, CARD), "\n".join(out).rstrip() + "\n")
-    return os.path.join(bundle_dir, CARD)
+    return "\n".join(out).rstrip() + "\n"
 
 
 def _counted(n, data) -> str:
@@ -203,6 +206,13 @@ def _trained_on(config, data) -> str:
 
 
 def weights_index(root, shipped) -> str:
+    """Write the shipped bundles' index, ``root/README.md`` (:func:`index_text`); returns its
+    path."""
+    files.atomic_write(os.path.join(root, "README.md"), index_text(root, shipped))
+    return os.path.join(root, "README.md")
+
+
+def index_text(root, shipped) -> str:
     """The shipped bundles' index (``sphere_jax/weights/README.md``), from their files:
     ``shipped`` maps each name to its :class:`~sphere_jax.models.shipped.Shipped` row
     (folder under ``root``, recipe)."""
@@ -234,6 +244,4 @@ def weights_index(root, shipped) -> str:
         out.append(f"| {kind} | `{folder}` | {net} | {done} / {config.train.steps} × "
                    f"{config.train.batch_size} | {_trained_on(config, data)} | {recipe} | "
                    f"`{command}` |")
-    text = "\n".join(out) + "\n"
-    files.atomic_write(os.path.join(root, "README.md"), text)
-    return os.path.join(root, "README.md")
+    return "\n".join(out) + "\n"

@@ -11,6 +11,7 @@ shapes whose frame, turned, lands within :data:`FRAME_TOLERANCE_DEG` of the cano
 """
 from __future__ import annotations
 
+import json
 import os
 
 import jax
@@ -190,36 +191,73 @@ def frame_table(angle_deg, labels, classes, right_ar, method):
     return out
 
 
+FACTS = "classification.json"      # the test set: how many shapes, the split's rule
+FRAME_COLUMNS = ("class", "shapes", "frame_within", "median_angle", "ar_accuracy_within",
+                 "ar_accuracy_beyond")
+
+
 def write(workdir, rows, frame_rows, trained, n_test, rule):
-    cols = ("method", "split", "accuracy", "thesis")
-    acc = {(r["method"], r["split"]): r for r in rows}
+    """classification.csv (accuracy per method and split), training.csv, frames.csv and
+    classification.json in ``workdir``; returns :func:`summary` of them (also written as
+    classification.md)."""
+    os.makedirs(workdir, exist_ok=True)
+    files.atomic_write(os.path.join(workdir, "training.csv"),
+                       report.to_csv(trained, ("method", "steps", "batch", "train_min")))
+    if frame_rows:
+        files.atomic_write(os.path.join(workdir, "frames.csv"),
+                           report.to_csv(frame_rows, ("method",) + FRAME_COLUMNS))
+    files.atomic_write(os.path.join(workdir, FACTS),
+                       json.dumps({"test_shapes": n_test, "rule": rule}, indent=1))
+    report.write(workdir, "classification", rows, ("method", "split", "accuracy", "thesis"),
+                 "")
+    md = summary(workdir)
+    files.atomic_write(os.path.join(workdir, "classification.md"), md)
+    return md
+
+
+def _numbers(rows):
+    """CSV rows with their numbers parsed: counts as ints, the rest as floats (NaN: empty)."""
+    def parse(v):
+        if v.lstrip("-").isdigit():
+            return int(v)
+        value = report.number(v)
+        return float("nan") if value is None else value
+    return [{k: v if k in ("method", "class", "split") else parse(v) for k, v in r.items()}
+            for r in rows]
+
+
+def summary(folder) -> str:
+    """A run's markdown from its files (the workdir or its record in docs/records): accuracy
+    NR / AR beside the thesis's, each classifier's training, and where AR loses to NR."""
+    with open(os.path.join(str(folder), FACTS)) as f:
+        facts = json.load(f)
+    acc = {(r["method"], r["split"]): r
+           for r in _numbers(report.read_rows(folder, "classification"))}
     table = [{"method": m, "NR": acc[(m, "NR")]["accuracy"], "AR": acc[(m, "AR")]["accuracy"],
               "thesis NR": acc[(m, "NR")]["thesis"], "thesis AR": acc[(m, "AR")]["thesis"]}
-             for m in dict.fromkeys(r["method"] for r in rows)]
+             for m in dict.fromkeys(m for m, _ in acc)]
     md = ("# Rotation-invariant classification\n\n"
-          f"**Accuracy on {n_test} test shapes ({rule}): NR in canonical pose, AR each turned "
-          f"by a seeded random rotation; beside them the thesis's figures (You et al. 2018's "
-          f"split of ModelNet40)**\n\n"
+          f"**Accuracy on {facts['test_shapes']} test shapes ({facts['rule']}): NR in canonical "
+          f"pose, AR each turned by a seeded random rotation; beside them the thesis's figures "
+          f"(You et al. 2018's split of ModelNet40)**\n\n"
           + report.table(table, ("method", "NR", "AR", "thesis NR", "thesis AR")))
+    trained = _numbers(report.read_rows(folder, "training"))
     md += ("\n\n**Training each classifier** (the loop's wall time; orienting the shapes "
            "once is not in it)\n\n"
            + report.table(trained, ("method", "steps", "batch", "train_min"),
                           ("method", "steps", "batch", "training, min"), fmt="{:.0f}"))
+    frame_rows = _numbers(report.read_rows(folder, "frames"))
     if frame_rows:
-        fcols = ("class", "shapes", "frame_within", "median_angle", "ar_accuracy_within",
-                 "ar_accuracy_beyond")
         order = [frame_rows[0]] + sorted(frame_rows[1:], key=lambda r: r["frame_within"])
         md += (f"\n\n**Where AR loses to NR: the share of test shapes whose Compass frame, "
                f"turned with the shape, lands within {FRAME_TOLERANCE_DEG:.0f}° of the "
                f"canonical shape's, per class (worst first), and {frame_rows[0]['method']}'s "
                f"AR accuracy on those shapes and on the rest**\n\n"
-               + report.table(order, fcols, ("class", "shapes", "frame within", "median angle °",
-                                             "AR acc. within", "AR acc. beyond"),
-                              fmt="{:.2f}"))
-        os.makedirs(workdir, exist_ok=True)
-        files.atomic_write(os.path.join(workdir, "frames.csv"),
-                           report.to_csv(frame_rows, ("method",) + fcols))
-    return report.write(workdir, "classification", rows, cols, md + "\n")
+               + report.table(order, FRAME_COLUMNS, ("class", "shapes", "frame within",
+                                                     "median angle °", "AR acc. within",
+                                                     "AR acc. beyond"), fmt="{:.2f}"))
+    return md + "\n"
 
 
-TASK = tasks.Task(run=run, methods=lambda: tuple(METHODS), kept=kept, bundles=bundles)
+TASK = tasks.Task(run=run, methods=lambda: tuple(METHODS), kept=kept, bundles=bundles,
+                  summary=summary)

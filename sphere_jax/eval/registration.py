@@ -268,4 +268,43 @@ def run(config, workdir, progress=True):
     return rows, md
 
 
-TASK = tasks.Task(run=run, methods=registry.keys, check_data=scene_lib.check_data)
+# The published table of a run (docs/results.md, the model cards): means over its pairs.
+SUMMARY = (("fmr", "FMR", "{:.3f}"), ("inlier_ratio", "inlier ratio", "{:.3f}"),
+           ("n_correct", "correct / pair", "{:.0f}"), ("rr", "RR", "{:.2f}"),
+           ("rre_deg", "RRE (°)", "{:.2f}"), ("rte_m", "RTE (m)", "{:.3f}"),
+           ("ms_per_keypoint", "ms / keypoint", "{:.2f}"))
+
+
+def summary(folder) -> str:
+    """A run's published markdown from its files (``folder``: the workdir or its record in
+    docs/records): one table of methods by :data:`SUMMARY`'s metrics, and the pair votes'
+    accuracy where voted methods ran."""
+    config = tasks.read_record(folder)["config"]
+    rows = report.read_rows(folder, "results")
+    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean"))
+    means = report.read_means(folder, "results")
+    pairs = max(int(float(r["pairs"])) for r in means.values())
+    out = [f"# Registration benchmark{' (rotated)' if config.get('rotate') else ''}", "",
+           report.means_table(means, SUMMARY), "",
+           f"Means over {pairs} pairs ({', '.join(scenes)}). FMR: share of pairs with an "
+           f"inlier ratio ≥ τ2 = {config['tau2']:g} at τ1 = {config['tau1']:g} m. RR: RANSAC "
+           f"results within RRE < {RRE_OK_DEG:g}° and RTE < {config['data']['radius']:g} m; "
+           f"RRE and RTE: means over those. ms / keypoint: description time."]
+    votes = report.read_rows(folder, "votes")
+    if votes:
+        out += ["", "| voted method | pairs | vote RRE median (°) | vote RRE max (°) | "
+                "second pass kept |", "|---|---|---|---|---|"]
+        for method in dict.fromkeys(v["method"] for v in votes):
+            mine = [v for v in votes if v["method"] == method]
+            rre = np.array([float(v["vote_rre_deg"]) for v in mine])
+            kept = sum(v["second_pass"] == "True" for v in mine)
+            out.append(f"| {method} | {len(mine)} | {np.median(rre):.2f} | {rre.max():.2f} | "
+                       f"{kept} |")
+        out += ["", "The pair vote's rotation against the ground truth, before RANSAC; "
+                "second pass kept: RANSAC found more inliers among its matches than among "
+                "the first pass's."]
+    return "\n".join(out) + "\n"
+
+
+TASK = tasks.Task(run=run, methods=registry.keys, check_data=scene_lib.check_data,
+                  summary=summary)

@@ -207,5 +207,25 @@ def run(config, workdir, progress=True):
     return rows, md
 
 
+SUMMARY = (("rep", "repeatability", "{:.3f}"), ("mean_angle_deg", "mean angle (°)", "{:.1f}"))
+
+
+def summary(folder) -> str:
+    """A run's published markdown from its files (the workdir or its record in
+    docs/records): one table of methods by :data:`SUMMARY`'s metrics."""
+    config = tasks.read_record(folder)["config"]
+    rows = report.read_rows(folder, "lrf_results")
+    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean"))
+    means = report.read_means(folder, "lrf_results")
+    pairs = max(int(float(r["pairs"])) for r in means.values())
+    variant = " (rotated)" if config.get("rotate") else ""
+    if config.get("adapt_steps"):
+        variant += f"{ADAPTED} ({config['adapt_steps']} steps, no ground truth read)"
+    return (f"# LRF repeatability{variant}\n\n{report.means_table(means, SUMMARY)}\n\n"
+            f"Means over {pairs} pairs ({', '.join(scenes)}). Repeatability: share of "
+            f"corresponding keypoints whose frames agree (every axis cosine ≥ ρ = "
+            f"{config['rho']:g}); mean angle: between corresponding frames.\n")
+
+
 TASK = tasks.Task(run=run, methods=lambda: tuple(registry.LRFS),
-                  check_data=scene_lib.check_data)
+                  check_data=scene_lib.check_data, summary=summary)

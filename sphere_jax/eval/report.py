@@ -116,6 +116,55 @@ def read_means(workdir, stem) -> dict:
         return {r["method"]: r for r in csv.DictReader(f) if r["scene"] == "mean"}
 
 
+def read_rows(workdir, stem) -> list[dict]:
+    """Every row of ``<stem>.csv`` in ``workdir`` (values as strings); [] when it is absent."""
+    path = os.path.join(workdir, f"{stem}.csv")
+    if not os.path.isfile(path):
+        return []
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def number(text) -> float | None:
+    """A CSV cell as a float; None for an empty, unparsable or NaN cell (not recorded)."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        return None
+    return value if value == value else None
+
+
+# A description time measured while other processes used more than this share of the cores
+# is marked as shared (sphere_jax/eval/timing.py).
+SHARED = 0.1
+
+
+def means_table(means: dict, columns) -> str:
+    """One markdown line per method of ``means`` (``{method: mean row}``, :func:`read_means`),
+    one column per ``(key, header, fmt)`` of ``columns``; an ``ms_per_keypoint`` measured
+    while other processes used more than :data:`SHARED` of the cores is marked, and said
+    so below the table."""
+    out = ["| method | " + " | ".join(h for _, h, _ in columns) + " |",
+           "|---" * (len(columns) + 1) + "|"]
+    shared = False
+    for method, row in means.items():
+        cells = []
+        for key, _, fmt in columns:
+            value = number(row.get(key))
+            cell = "–" if value is None else fmt.format(value)
+            others = number(row.get("others_cpu"))
+            if key == "ms_per_keypoint" and value is not None and others is not None \
+                    and others > SHARED:
+                cell += f" (shared {others:.0%})"
+                shared = True
+            cells.append(cell)
+        out.append(f"| {method} | " + " | ".join(cells) + " |")
+    if shared:
+        out += ["", "shared N %: other processes used N % of the cores while the method "
+                "described, so its time is longer than alone."]
+    return "\n".join(out)
+
+
 def markdown_report(rows, tables, title):
     parts = [f"# {title}"]
     for key, caption, fmt in tables:

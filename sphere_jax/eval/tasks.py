@@ -49,12 +49,16 @@ class Task:
         config's bundles.
       bundles: ``(config) -> {name: path}`` of a task whose config has no ``bundles`` (the
         classification's classifiers and whole-shape Compass), for the run's record.
+      summary: ``(folder) -> markdown``: the run's published tables (one per run, methods by
+        metrics), read from the CSV and JSON files of its workdir or of its record
+        (``experiments.publish`` keeps those in docs/records). None: not publishable.
     """
     run: Callable[[Any, str, bool], tuple]
     methods: Optional[Callable[[], Iterable[str]]] = None
     check_data: Optional[Callable[[Any], None]] = None
     kept: Optional[Callable[[str, Any], int]] = None
     bundles: Optional[Callable[[Any], dict]] = None
+    summary: Optional[Callable[[str], str]] = None
 
 
 def task(name) -> Task:
@@ -66,6 +70,16 @@ def task(name) -> Task:
 
 
 RUN_RECORD = "run.json"
+
+
+def read_record(folder) -> dict:
+    """The ``run.json`` of an evaluation workdir (or of its record in docs/records)."""
+    path = os.path.join(str(folder), RUN_RECORD)
+    if not os.path.isfile(path):
+        raise checks.MissingError(f"{folder} has no {RUN_RECORD}: not an experiments.evaluate "
+                                  f"workdir")
+    with open(path) as f:
+        return json.load(f)
 
 
 def run(config, workdir, progress=True, command=None):

@@ -4,13 +4,14 @@ docs' section, the README's headline block and the cards' evaluation sections fo
 import csv
 import json
 import os
+import shutil
 
 import jax.numpy as jnp
 import ml_collections
 import pytest
 
 from configs import eval_registration, lead
-from experiments import publish, standing
+from experiments import publish, records, standing
 from sphere_jax import training
 from sphere_jax.models import shipped
 from sphere_jax.bundles import model_card, store
@@ -47,21 +48,39 @@ def test_training_writes_the_card_and_evaluations_complete_it(tmp_path):
     assert record["command"] == "python -m experiments.evaluate X"
     assert list(record["bundles"]) == ["lead"] and record["bundles"]["lead"]["steps_done"] == 2
 
-    readme = tmp_path / "README.md"
-    readme.write_text(README)
+    outputs = _outputs(tmp_path, README, weights=tmp_path)    # the trained bundle: w/bundle
+    readme = outputs.readme
     # The headline run alone: its section and the cards follow it, never another run of it.
-    out = publish.publish([], headline=str(tmp_path / "ev"),
-                          results=str(tmp_path / "docs" / "results.md"), readme=str(readme))
+    publish.publish([], headline=str(tmp_path / "ev"), root=str(tmp_path / "records"),
+                    outputs=outputs)
+    out = outputs.results
     with open(tmp_path / "ev" / "results.csv") as f:
         lead_mean = next(r for r in csv.DictReader(f) if r["method"] == "lead"
                          and r["scene"] == "mean")
-    text = readme.read_text()
+    text = open(readme).read()
     assert "old" not in text and text.startswith("# x\n\nabove") and text.endswith("below\n")
     assert f"| lead | {float(lead_mean['fmr']):.2f} | {float(lead_mean['inlier_ratio']):.3f} |" \
         in text
     assert "`python -m experiments.evaluate X`" in open(out).read()
     card = (path / model_card.CARD).read_text()
     assert "## Evaluations" in card and "python -m experiments.evaluate X" in card
+
+
+def _outputs(tmp_path, readme_text=README, weights=None) -> publish.Outputs:
+    """Where a test's publish writes: a README holding ``readme_text``, results.md beside
+    it, the cards of the bundles under ``weights`` (default ``tmp_path/weights``)."""
+    repo = tmp_path / "repo"
+    repo.mkdir(exist_ok=True)
+    (repo / "README.md").write_text(readme_text)
+    return publish.Outputs(results=str(repo / "results.md"), readme=str(repo / "README.md"),
+                           weights=str(weights or tmp_path / "weights"))
+
+
+def _publish(tmp_path, *args, **kwargs):
+    if "outputs" not in kwargs:
+        kwargs["outputs"] = _outputs(tmp_path)
+    publish.publish(*args, root=str(tmp_path / "records"), **kwargs)
+    return kwargs["outputs"]
 
 
 def _compass_bundle(path, steps):
@@ -72,90 +91,107 @@ def _compass_bundle(path, steps):
     return path
 
 
-def _lrf_run(tmp_path, name, root, recorded):
-    """An LRF run's folder (``run.json`` naming the compass bundle as ``recorded``)."""
+def _shipped_compass(tmp_path, steps=1):
+    """A compass bundle among the test's weights, and what a run records of it."""
+    path = _compass_bundle(tmp_path / "weights" / "compass_x" / "bundle", steps)
+    return path, {"path": str(path), "steps_done": steps, "fingerprint": store.fingerprint(path)}
+
+
+def _lrf_run(tmp_path, name, root, recorded, means=None, title_steps=0):
+    """An LRF run's folder: ``run.json`` naming the compass bundle as ``recorded``, and the
+    mean rows of ``lrf_results.csv`` (``{method: (rep, mean angle)}``)."""
     run = tmp_path / f"run_{name}"
+    run.mkdir(exist_ok=True)
+    (run / "run.json").write_text(json.dumps({
+        "command": f"evaluate {name}", "task": "lrf",
+        "config": {"data": {"root": root}, "rho": 0.97, "adapt_steps": title_steps},
+        "bundles": {"compass": recorded} if recorded else {}, "date": "2026-01-01",
+        "wall_s": 60}))
+    rows = [dict(method=m, scene=s, pairs=3, rep=rep, mean_angle_deg=angle)
+            for m, (rep, angle) in (means or {"compass": (0.3, 80.0)}).items()
+            for s in ("kitchen", "mean")]
+    (run / "lrf_results.csv").write_text(report.to_csv(rows, report.LRF_COLUMNS))
+    return str(run)
+
+
+def _registration_run(tmp_path, name, bundles, means, methods=None):
+    """A registration run's folder: ``run.json`` and ``results.csv`` (one scene and the mean
+    rows, ``{method: (inlier ratio, correct, RR)}``)."""
+    run = tmp_path / name
     run.mkdir()
     (run / "run.json").write_text(json.dumps({
-        "command": f"evaluate {name}", "task": "lrf", "config": {"data": {"root": root}},
-        "bundles": {"compass": recorded}, "date": "2026-01-01", "wall_s": 60}))
-    (run / "lrf_results.md").write_text(f"# LRF repeatability\n\n| {name} |\n")
+        "command": f"evaluate {name}", "task": "registration", "bundles": bundles,
+        "config": {"data": {"root": "/data/bunny", "radius": 0.3}, "tau1": 0.1, "tau2": 0.05,
+                   "methods": methods or ",".join(means)},
+        "date": "2026-01-01", "wall_s": 60}))
+    rows = [dict(method=m, scene=s, pairs=4, fmr=1.0, inlier_ratio=ir, n_correct=n, rre_deg=1.0,
+                 rte_m=0.01, ms_per_keypoint=1.0, others_cpu=0.0, rr=rr)
+            for m, (ir, n, rr) in means.items() for s in ("bun", "mean")]
+    (run / "results.csv").write_text(report.to_csv(rows, report.REGISTRATION_COLUMNS))
     return str(run)
 
 
 def test_runs_of_one_task_on_two_data_sets_both_reach_the_card(tmp_path):
     """Two LRF runs share the table title; the card keeps both, named by their data."""
-    path = _compass_bundle(tmp_path / "bundle", 1)
-    runs = [_lrf_run(tmp_path, name, root, {"path": str(path), "steps_done": 1})
+    path, recorded = _shipped_compass(tmp_path)
+    runs = [_lrf_run(tmp_path, name, root, recorded)
             for name, root in (("a", "/data/kitchen"), ("b", "/data/bunny"))]
-    publish.publish(runs, results=str(tmp_path / "results.md"))
+    _publish(tmp_path, runs)
     card = (path / model_card.CARD).read_text()
     assert "### LRF repeatability on /data/kitchen" in card
     assert "### LRF repeatability on /data/bunny" in card
+    assert "| compass | 0.300 | 80.0 |" in card
 
 
 def test_a_ground_truth_diagnostic_run_sits_beside_the_benchmark_on_the_card(tmp_path):
     """``lead_gt`` on the benchmark's data has the benchmark's title: its card entry is its
     own, and the benchmark's stays."""
-    path = _compass_bundle(tmp_path / "bundle", 1)
-    recorded = {"compass": {"path": str(path), "steps_done": 1}}
-    bench = _registration_run(tmp_path, "bench", recorded, {"lead": (0.2, 200, 1.0)})
-    diag = _registration_run(tmp_path, "diag", recorded, {"lead_gt": (0.5, 400, 1.0)})
-    for run, methods in ((bench, "fpfh,lead"), (diag, "lead,lead_gt")):
-        record = json.loads(open(os.path.join(run, "run.json")).read())
-        record["config"]["methods"] = methods
-        open(os.path.join(run, "run.json"), "w").write(json.dumps(record))
-    publish.publish([bench, diag], results=str(tmp_path / "results.md"))
+    path, recorded = _shipped_compass(tmp_path)
+    bench = _registration_run(tmp_path, "bench", {"compass": recorded},
+                              {"lead": (0.2, 200, 1.0)}, methods="fpfh,lead")
+    diag = _registration_run(tmp_path, "diag", {"compass": recorded},
+                             {"lead_gt": (0.5, 400, 1.0)}, methods="lead,lead_gt")
+    _publish(tmp_path, [bench, diag])
     card = (path / model_card.CARD).read_text()
     assert "evaluate bench" in card and "evaluate diag" in card
     assert "### Registration benchmark on /data/bunny, with ground-truth-frame diagnostics" in card
 
 
 def test_a_card_lists_only_runs_of_its_own_bundle(tmp_path):
-    """A run of an earlier version of the bundle (another fingerprint, or other steps where
-    none was recorded) stays out of the retrained bundle's card."""
-    path = _compass_bundle(tmp_path / "bundle", 5)
-    runs = [_lrf_run(tmp_path, name, name, {"path": str(path), **recorded}) for name, recorded in (
-        ("now", {"fingerprint": store.fingerprint(path), "steps_done": 5}),
-        ("old", {"fingerprint": "0" * 16, "steps_done": 5}), ("older", {"steps_done": 3}))]
-    publish.publish(runs, results=str(tmp_path / "results.md"))
+    """A run of an earlier version of the bundle (another fingerprint, or none recorded)
+    stays out of the retrained bundle's card."""
+    path, recorded = _shipped_compass(tmp_path, 5)
+    runs = [_lrf_run(tmp_path, name, name, r) for name, r in (
+        ("now", recorded), ("old", {**recorded, "fingerprint": "0" * 16}),
+        ("older", {"path": str(path), "steps_done": 5}))]
+    _publish(tmp_path, runs)
     card = (path / model_card.CARD).read_text()
     assert "LRF repeatability on now" in card
     assert "on old" not in card and "on older" not in card
 
 
-def _registration_run(tmp_path, name, bundles, means):
-    """A registration run's folder: ``run.json`` and the mean rows of ``results.csv``."""
-    run = tmp_path / name
-    run.mkdir()
-    (run / "run.json").write_text(json.dumps({
-        "command": f"evaluate {name}", "task": "registration", "bundles": bundles,
-        "config": {"data": {"root": "/data/bunny"}}, "date": "2026-01-01", "wall_s": 60}))
-    (run / "results.md").write_text("# Registration benchmark\n")
-    with open(run / "results.csv", "w") as f:
-        f.write("method,scene,inlier_ratio,n_correct,rr\n")
-        for method, (ir, n, rr) in means.items():
-            f.write(f"{method},bun,0,0,0\n{method},mean,{ir},{n},{rr}\n")
-    return str(run)
-
-
-def test_a_registration_section_shows_its_pair_votes_below_its_tables(tmp_path):
-    """The vote's rotation errors (votes.md) are published in the run's section, after its
-    own tables; a run without a vote has none."""
+def test_a_registration_section_is_one_table_with_its_pair_votes_below(tmp_path):
+    """A run's section is one table of methods by metrics (means); a run with a pair vote
+    says below it how far the votes' rotations were from the truth, a run without has none."""
     voted = _registration_run(tmp_path, "voted", {}, {"lead_vote": (0.5, 400, 1.0)})
-    (tmp_path / "voted" / "results.md").write_text("# Registration benchmark\n\n| ir |\n")
-    (tmp_path / "voted" / "votes.md").write_text("# Pair votes\n\n| lead_vote | 0-4 | 1.42 |\n")
+    votes = [dict(method="lead_vote", scene="bun", pair=p, vote_rre_deg=e, vote_support=9,
+                  vote_proposals=90, vote_mode=0, box_turn_deg=0.0, second_pass=kept)
+             for p, e, kept in (("0-1", 1.5, True), ("0-2", 3.5, False), ("1-2", 2.0, True))]
+    (tmp_path / "voted" / "votes.csv").write_text(report.to_csv(votes, list(votes[0])))
     plain = _registration_run(tmp_path, "plain", {}, {"shot": (0.3, 200, 1.0)})
-    results = tmp_path / "results.md"
-    publish.publish([voted, plain], results=str(results))
-    text = results.read_text()
+    text = open(_publish(tmp_path, [voted, plain]).results).read()
     section = text[text.index("evaluate voted"):text.index("evaluate plain")]
-    assert section.index("| ir |") < section.index("### Pair votes") < section.index(
-        "| lead_vote | 0-4 | 1.42 |")
-    assert text.count("Pair votes") == 1
+    assert ("| method | FMR | inlier ratio | correct / pair | RR | RRE (°) | RTE (m) | "
+            "ms / keypoint |") in section
+    assert "| lead_vote | 1.000 | 0.500 | 400 | 1.00 | 1.00 | 0.010 | 1.00 |" in section
+    votes_row = "| lead_vote | 3 | 2.00 | 3.50 | 2 |"
+    assert section.index("| lead_vote | 1.000") < section.index(votes_row)
+    assert text.count("voted method") == 1
+    assert sorted(os.listdir(tmp_path / "records" / "voted")) == ["results.csv", "run.json",
+                                                                  "votes.csv"]
 
 
-def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tmp_path):
+def test_the_adaptation_record_compares_methods_and_names_the_adapted_bundle(tmp_path):
     shipped = _compass_bundle(tmp_path / "shipped", 100)
     adapted = tmp_path / "adapted"
     store.save(adapted, ml_collections.ConfigDict({
@@ -171,13 +207,20 @@ def test_the_adaptation_section_compares_methods_and_names_the_adapted_bundle(tm
                                {"shot": (0.06, 23, 0.4), "lead_compass": (0.08, 55, 0.6)})
     after = _registration_run(tmp_path, "after", {"compass": {"path": str(adapted)}},
                               {"lead_compass": (0.10, 70, 0.7)})
-    text = publish.adaptation_section(before, after)
+    text = publish.comparison_section(publish.comparison(before, after))
     assert "| lead_compass | 0.080 | 0.100 | +25% | 55 | 70 | 0.60 | 0.70 |" in text
     assert "| shot | 0.060 | – | – | 23 | – | 0.40 | – |" in text
     assert ("compass: 240 steps, 2.0 min of them (budget 10), weights of step 200, on "
             "`/scans/mine` at voxel 0.001, radius 0.015") in text
     assert "Before: `evaluate before`" in text and "After: `evaluate after`" in text
     assert text.startswith("## Adaptation without labels, compass adapted, 10 min: ")
+    # Its record outlives the adapted bundle and both workdirs.
+    _publish(tmp_path, adaptations=[(before, after)])
+    for gone in (adapted, tmp_path / "before", tmp_path / "after"):
+        shutil.rmtree(gone)
+    outputs = _outputs(tmp_path)
+    rendered = publish.render(str(tmp_path / "records"), outputs)
+    assert text.strip() in rendered[outputs.results]
 
 
 def test_an_adaptation_title_names_the_budgets(tmp_path):
@@ -211,6 +254,7 @@ def test_a_minutes_budget_card_has_no_step_total_and_names_the_constant_rate(tmp
 
 
 def _csv_run(tmp_path, name, stem, header, means):
+    """A run folder with mean rows of ``<stem>.csv`` only: what standing reads."""
     run = tmp_path / name
     run.mkdir()
     with open(run / f"{stem}.csv", "w") as f:
@@ -232,12 +276,7 @@ def test_the_targets_table_says_what_is_met_and_by_how_much(tmp_path):
     lrf = "method,scene,rep"
     kitchen = _csv_run(tmp_path, "k", "lrf_results", lrf, {"flare": "0.20", "compass": "0.25"})
     bunny = _csv_run(tmp_path, "b", "lrf_results", lrf, {"flare": "0.40", "compass": "0.20"})
-    readme = tmp_path / "README.md"
-    readme.write_text("a\n<!-- targets:begin -->\nold\n<!-- targets:end -->\nb\n")
-    publish.publish([], results=str(tmp_path / "results.md"), readme=str(readme),
-                    targets=[match, lomatch, rotated, kitchen, bunny])
-    text = readme.read_text()
-    assert "old" not in text and text.startswith("a\n") and text.endswith("b\n")
+    text = standing.table(match, lomatch, rotated, kitchen, bunny)
     assert ("| best learned descriptor (lead_pn): inlier ratio ≥ 1.15× USC's and ≥ 1.3× SHOT's "
             "| 0.350 against 0.400 and 0.300 (0.87× and 1.17×) | **no** |") in text
     assert "| its correct matches per pair ≥ 2× SHOT's | 320 against 200 (1.60×) | **no** |" in text
@@ -250,38 +289,53 @@ def test_the_targets_table_says_what_is_met_and_by_how_much(tmp_path):
     assert "on the bunny, without adaptation | 0.200 against 0.400 (0.50×) | **no** |" in text
 
 
+def test_the_targets_block_follows_its_records(tmp_path):
+    """``--targets`` records its five runs and fills the README's block from the records."""
+    means = {"shot": (0.30, 200, 1.0), "usc": (0.40, 210, 1.0), "lead_pn": (0.35, 320, 1.0)}
+    runs = [_registration_run(tmp_path, n, {}, means) for n in ("m", "lo", "rot")]
+    runs += [_lrf_run(tmp_path, n, "/d", {}, {"flare": (0.2, 80.0), "compass": (0.25, 70.0)})
+             for n in ("k", "b")]
+    outputs = _outputs(tmp_path, "a\n<!-- targets:begin -->\nold\n<!-- targets:end -->\nb\n")
+    _publish(tmp_path, targets=runs, outputs=outputs)
+    text = open(outputs.readme).read()
+    assert "old" not in text and text.startswith("a\n") and text.endswith("b\n")
+    assert "| its correct matches per pair ≥ 2× SHOT's | 320 against 200 (1.60×) | **no** |" in text
+    assert "From the records m, lo, rot, run_k, run_b" in text
+    assert records.read_index(str(tmp_path / "records"))["targets"] == ["m", "lo", "rot",
+                                                                       "run_k", "run_b"]
+
+
 def test_publishing_a_run_again_replaces_only_its_own_section(tmp_path):
-    """docs/results.md keeps one section per run folder: a rerun's publish replaces its
-    section in place and leaves the others (their folders may be long gone); ``fresh`` writes
-    only the runs given; ``drop`` removes a section by its key."""
-    path = _compass_bundle(tmp_path / "bundle", 1)
-    recorded = {"path": str(path), "steps_done": 1}
-    a, b = (_lrf_run(tmp_path, name, f"/data/{name}", recorded) for name in ("a", "b"))
-    results = str(tmp_path / "results.md")
-    publish.publish([a, b], results=results)
-    (tmp_path / "run_a" / "lrf_results.md").write_text("# LRF repeatability\n\n| a again |\n")
-    publish.publish([a], results=results)
-    text = open(results).read()
-    assert "| a again |" in text and "| a |" not in text and "| b |" in text
+    """docs/results.md keeps one section per record: a rerun's publish replaces its record
+    and section in place and leaves the others (their workdirs may be long gone); ``fresh``
+    keeps only the runs given; ``drop`` removes a record with its section."""
+    a, b = (_lrf_run(tmp_path, name, f"/data/{name}", {}) for name in ("a", "b"))
+    outputs = _publish(tmp_path, [a, b])
+    _lrf_run(tmp_path, "a", "/data/a", {}, {"compass": (0.5, 10.0)})
+    _publish(tmp_path, [a], outputs=outputs)
+    text = open(outputs.results).read()
+    assert "| compass | 0.500 | 10.0 |" in text and "| compass | 0.300 | 80.0 |" in text
     assert text.index("/data/a") < text.index("/data/b")            # in its place
     assert text.count("<!-- section:") == 2
-    key = publish.run_key(a)
-    publish.publish([], results=results, drop=[key])
-    assert "/data/a" not in open(results).read() and "| b |" in open(results).read()
-    with pytest.raises(ValueError, match=f"--drop: no section '{key}'"):
-        publish.publish([], results=results, drop=[key])
-    publish.publish([a], results=results, fresh=True)
-    assert "/data/b" not in open(results).read()
+    shutil.rmtree(b)
+    _publish(tmp_path, drop=["run_a"], outputs=outputs)
+    assert "/data/a" not in open(outputs.results).read()
+    assert "/data/b" in open(outputs.results).read()
+    assert not (tmp_path / "records" / "run_a").exists()
+    with pytest.raises(ValueError, match="--drop: no record 'run_a'"):
+        _publish(tmp_path, drop=["run_a"], outputs=outputs)
+    _publish(tmp_path, [a], fresh=True, outputs=outputs)
+    assert "/data/b" not in open(outputs.results).read()
 
 
-def test_a_new_adaptation_section_joins_the_others():
-    old = "".join(f"<!-- section: {k} -->\n{k} text\n\n" for k in
-                  ("runs/a", "adaptation runs/a2", "runs/b"))
-    got = publish.merged_sections(old, [("adaptation runs/b2", "new"), ("runs/c", "c"),
-                                        ("runs/a", "a again")])
-    assert [k for k, _ in got] == ["runs/a", "adaptation runs/a2", "adaptation runs/b2",
-                                   "runs/b", "runs/c"]
-    assert dict(got)["runs/a"] == "a again"
+def test_a_new_comparison_joins_the_others(tmp_path):
+    """A new before/after comparison goes after the last one, where a reader finds them."""
+    runs = {n: _lrf_run(tmp_path, n, f"/d/{n}", {}) for n in ("a", "b", "x", "y")}
+    outputs = _publish(tmp_path, [runs["a"]], adaptations=[(runs["a"], runs["x"])])
+    _publish(tmp_path, [runs["b"]], outputs=outputs)
+    _publish(tmp_path, adaptations=[(runs["b"], runs["y"])], outputs=outputs)
+    assert records.read_index(str(tmp_path / "records"))["sections"] == [
+        "run_a", "adaptation-run_x", "adaptation-run_y", "run_b"]
 
 
 def test_the_contents_link_each_section_by_its_github_anchor():
@@ -301,24 +355,17 @@ def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_p
     names that one."""
     shipped = _compass_bundle(tmp_path / "shipped", 100)
     recorded = {"path": str(shipped), "steps_done": 100}
-    lrf = "method,scene,rep,mean_angle_deg"
-    before = _lrf_run(tmp_path, "before", "/data/bunny", recorded)
-    after = _lrf_run(tmp_path, "after", "/data/bunny", recorded)
-    for run, means in ((before, {"flare": "0.400,60.0", "compass": "0.200,90.0"}),
-                       (after, {"flare": "0.400,60.0", "compass": "0.300,70.5"})):
-        with open(f"{run}/lrf_results.csv", "w") as f:
-            f.write(lrf + "\n" + "".join(f"{m},mean,{v}\n" for m, v in means.items()))
+    before = _lrf_run(tmp_path, "before", "/data/bunny", recorded,
+                      {"flare": (0.4, 60.0), "compass": (0.2, 90.0)})
+    after = _lrf_run(tmp_path, "after", "/data/bunny", recorded,
+                     {"flare": (0.4, 60.0), "compass": (0.3, 70.5)}, title_steps=50)
     adapted = tmp_path / "run_after" / "adapted_compass" / "bundle"
     store.save(adapted, ml_collections.ConfigDict({
         "model": "compass", "data": {"root": "/data/bunny", "voxel": 0.001, "radius": 0.015},
         "train": {"steps": 50, "steps_done": 50, "best_step": 50, "batch_size": 2,
                   "learning_rate": 1e-4}}), {"params": {"w": jnp.ones(1)}, "batch_stats": {}})
-    from sphere_jax.eval import repeatability
-    with open(f"{after}/lrf_results.md", "w") as f:         # the title the adapting run writes
-        f.write(f"# LRF repeatability (rotated){repeatability.ADAPTED} (50 steps, no ground "
-                f"truth read)\n")
-    text = publish.adaptation_section(before, after)
-    assert "## Adaptation without labels, compass adapted: LRF repeatability (rotated) on " \
+    text = publish.comparison_section(publish.comparison(before, after))
+    assert "## Adaptation without labels, compass adapted: LRF repeatability on " \
            "/data/bunny" in text
     assert "| method | repeatability: before | after | change | mean angle (degrees): " \
            "before | after |" in text
@@ -326,7 +373,7 @@ def test_an_lrf_adaptation_section_names_the_bundle_the_run_adapted_itself(tmp_p
     assert "| flare | 0.400 | 0.400 | +0% | 60.0 | 60.0 |" in text
     assert "compass: 50 steps" in text and f"(`{adapted}`)" in text
     with pytest.raises(ValueError, match="two runs of one task"):
-        publish.adaptation_section(before, _registration_run(tmp_path, "reg", {}, {}))
+        publish.comparison(before, _registration_run(tmp_path, "reg", {}, {}))
 
 
 def test_a_compass_target_shows_the_declared_adaptation_but_counts_without_it(tmp_path):
@@ -340,7 +387,7 @@ def test_a_compass_target_shows_the_declared_adaptation_but_counts_without_it(tm
         runs.append(_csv_run(tmp_path, name, "lrf_results", lrf,
                              {"flare": "0.20" if name.startswith("k") else "0.40",
                               "compass": compass}))
-    rows = {t: (v, ok) for t, v, ok in standing.rows(*runs)}
+    rows = {t: (v, ok) for t, v, ok in standing.rows(*runs[:5], None, *runs[5:])}
     kitchen = rows["Compass: LRF repeatability ≥ 1.5× FLARE's on redkitchen, without adaptation"]
     assert kitchen == ("0.210 against 0.200 (1.05×); adapted on the scans first: 0.220 (1.10×)",
                        False)
@@ -353,20 +400,13 @@ def test_a_compass_target_shows_the_declared_adaptation_but_counts_without_it(tm
 
 
 def test_a_rerun_in_the_same_workdir_replaces_its_card_entry(tmp_path):
-    """A run's card entry is named by its title and data; rerun in the same workdir on data
-    that moved, it replaces its old entry instead of standing beside it."""
-    path = _compass_bundle(tmp_path / "bundle", 1)
-    for root in ("/old/place", "runs/new_place"):
-        model_card.add_evaluation(path, f"LRF repeatability on {root}", "| x |",
-                                  f"python -m experiments.evaluate --config.data.root={root} "
-                                  f"--workdir=runs/lrf")
-    model_card.add_evaluation(path, "LRF repeatability on /elsewhere", "| y |",
-                              "python -m experiments.evaluate --workdir=runs/other")
-    model_card.add_evaluation(path, "LRF repeatability on /moved", "| z |",       # absl takes
-                              "python -m experiments.evaluate --workdir runs/other")  # both forms
+    """A card entry is its record's: rerun in the same workdir on data that moved, the run
+    replaces its old entry instead of standing beside it."""
+    path, recorded = _shipped_compass(tmp_path)
+    outputs = _publish(tmp_path, [_lrf_run(tmp_path, "lrf", "/old/place", recorded)])
+    _publish(tmp_path, [_lrf_run(tmp_path, "lrf", "runs/new_place", recorded)], outputs=outputs)
     card = (path / model_card.CARD).read_text()
-    assert "on runs/new_place" in card and "/old/place" not in card and "/elsewhere" not in card
-    assert "on /moved" in card
+    assert "on runs/new_place" in card and "/old/place" not in card
 
 
 def test_a_stamp_names_which_weights_and_whether_results_were_reused():
@@ -431,11 +471,31 @@ def test_classification_targets_fill_their_readme_block(tmp_path):
     assert got["plain PointNet: NR accuracy ≥ 0.85 (its AR reported)"] == (
         "0.860 (AR 0.120)", True)
     assert got["evaluating the shipped classifiers, NR and AR: ≤ 10 minutes on 2 cores"][1]
-    readme = tmp_path / "README.md"
-    readme.write_text("a\n<!-- classification-targets:begin -->\nold\n"
-                      "<!-- classification-targets:end -->\nb\n")
-    publish.publish([], results=str(tmp_path / "results.md"), readme=str(readme),
-                    classification=str(run))
-    text = readme.read_text()
+    outputs = _outputs(tmp_path, "a\n<!-- classification-targets:begin -->\nold\n"
+                                 "<!-- classification-targets:end -->\nb\n")
+    (run / "training.csv").write_text("method,steps,batch,train_min\npointnet,10,2,1.5\n")
+    (run / "classification.json").write_text(json.dumps({"test_shapes": 9, "rule": "r"}))
+    (run / "run.json").write_text(json.dumps({"wall_s": 420.0, "task": "classification",
+                                              "config": {"data": {"root": "/s"}},
+                                              "date": "2026-01-01", "command": "c"}))
+    _publish(tmp_path, classification=str(run), outputs=outputs)
+    text = open(outputs.readme).read()
     assert "| Compass + PointNet: AR accuracy ≥ 0.72 (the thesis's 72.2 %) | 0.700 | **no** |" \
         in text and "old" not in text and text.endswith("end -->\nb\n")
+
+
+def test_the_frame_target_holds_lead_in_compass_frames_against_the_ground_truth(tmp_path):
+    """LEAD in Compass's frames keeps ≥ 75 % of its inlier ratio in ground-truth frames: read
+    from the run that describes both with one whitening and one draw of keypoints."""
+    reg = "method,scene,fmr,inlier_ratio,n_correct,rr"
+    means = {"shot": "1,0.30,200,1", "usc": "1,0.40,210,1", "lead_pn": "1,0.35,320,1"}
+    runs = [_csv_run(tmp_path, name, "results", reg, means) for name in ("m", "lo", "rot")]
+    runs += [_csv_run(tmp_path, name, "lrf_results", "method,scene,rep",
+                      {"flare": "0.20", "compass": "0.25"}) for name in ("k", "b")]
+    target = ("LEAD in Compass's frames: ≥ 75 % of its inlier ratio in the ground-truth frames "
+              "(same whitening and keypoints)")
+    for compass, expected in (("0.30", ("0.300 against 0.500 (60%)", False)),
+                              ("0.40", ("0.400 against 0.500 (80%)", True))):
+        gt = _csv_run(tmp_path, f"gt{compass}", "results", reg,
+                      {"lead_compass": f"1,{compass},300,1", "lead_gt": "1,0.50,400,1"})
+        assert {t: (v, ok) for t, v, ok in standing.rows(*runs, gt)}[target] == expected
