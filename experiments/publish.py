@@ -13,7 +13,9 @@ bundles, date) and CSV tables become its record ``docs/records/<folder name>/``,
 older record of that name, and its section of ``docs/results.md`` (one table per run, methods
 by metrics: the task's ``summary``). ``--headline`` (a registration run) fills the README's
 ``headline`` block; ``--targets`` its ``targets`` block (:mod:`experiments.standing`),
-``--classification`` its ``classification-targets`` block. ``--adaptation`` compares a run
+``--classification`` its ``classification-targets`` block; ``--registered`` (an
+``experiments.registered`` workdir) adds its table to docs/registered.md. ``--adaptation``
+compares a run
 with the shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF
 run's own ``adapt_steps``), method by method, and records the comparison. ``--drop`` removes a
 record and its section, ``--fresh`` keeps only the runs given.
@@ -47,6 +49,7 @@ class Outputs(NamedTuple):
     """Where the generated documents go."""
     results: str = os.path.join(REPO, "docs", "results.md")
     readme: str = os.path.join(REPO, "README.md")
+    registered: str = os.path.join(REPO, "docs", "registered.md")
     weights: str = paths.weights_root()        # each bundle's card, and the index
 
 
@@ -110,7 +113,7 @@ def run_section(folder):
     """``(heading, section, tables, record)`` of a run record: its task's summary (the
     tables) under a heading that names its data, stamped with its command and bundles."""
     record = tasks.read_record(folder)
-    title, body = split_title(record, tasks.task(record["task"]).summary(folder))
+    title, body = split_title(record, records.summary(folder))
     name, body = heading(record, title), body.strip()
     return name, f"## {name}\n\n{stamp(record)}\n\n{body}\n", body, record
 
@@ -185,7 +188,7 @@ def comparison(before_dir, after_dir) -> dict:
         rows.append({"method": method, "before": values(b), "after": values(a),
                      "change": change})
     kinds = adapted_bundles(before, after, after_dir)
-    title = split_title(after, tasks.task(task).summary(after_dir))[0]
+    title = split_title(after, records.summary(after_dir))[0]
     title = title.split(repeatability.ADAPTED)[0]                # said below instead
     names = sorted(kinds)
     return {"task": task, "title": title, "data": data_of(after),
@@ -303,6 +306,15 @@ def render(root=records.ROOT, outputs=Outputs()) -> dict:
             f"record {index['classification']} (its command, data and bundles: "
             f"docs/results.md).")
     out[outputs.readme] = readme
+    if index["registered"]:
+        from sphere_jax.eval import registered
+        parts = [registered.PAGE]
+        for name in index["registered"]:
+            record = tasks.read_record(folder(name))
+            body = split_title(record, records.summary(folder(name)))[1].strip()
+            parts += [f"<!-- section: {name} -->", f"## {'; '.join(record['data'])}", "",
+                      body, ""]
+        out[outputs.registered] = "\n".join(parts).rstrip() + "\n"
     for path in prints.values():
         entries = cards.get(path, {})
         out[os.path.join(path, model_card.EVALUATIONS)] = model_card.evaluations_text(entries)
@@ -324,16 +336,18 @@ def differences(rendered: dict) -> list[str]:
 
 
 def publish(run_dirs=(), headline=None, adaptations=(), targets=(), classification=None,
-            fresh=False, drop=(), root=records.ROOT, outputs=Outputs()) -> list[str]:
+            fresh=False, drop=(), root=records.ROOT, outputs=Outputs(),
+            registered=()) -> list[str]:
     """Record the given runs (and comparisons ``(before_dir, after_dir)``), update the index
     — a run published again keeps its place, a new one goes last (a comparison after the
     other comparisons), ``drop`` names records to remove, ``fresh`` keeps only these — and
     write every document the records render. Returns the paths that changed."""
     index = records.read_index(root)
-    missing = [n for n in drop if n not in index["sections"]]
+    missing = [n for n in drop if n not in index["sections"] + index["registered"]]
     if missing:
         raise ValueError(f"--drop: no record {missing[0]!r} (there are: "
-                         f"{', '.join(index['sections'])})")
+                         f"{', '.join(index['sections'] + index['registered'])})")
+    index["registered"] = [n for n in index["registered"] if n not in drop]
     os.makedirs(root, exist_ok=True)
     given = [records.save(d, root) for d in run_dirs]
     if headline:
@@ -342,6 +356,9 @@ def publish(run_dirs=(), headline=None, adaptations=(), targets=(), classificati
         index["targets"] = [records.save(d, root) for d in targets]
     if classification:
         index["classification"] = records.save(classification, root)
+    for d in registered:             # docs/registered.md, a page of its own
+        name = records.save(d, root)
+        index["registered"] = [n for n in index["registered"] if n != name] + [name]
     compared = [records.save_comparison(records.name_of(after),
                                         comparison(before, after), root)
                 for before, after in adaptations]
@@ -376,6 +393,9 @@ def main(argv=None):
     parser.add_argument("--classification", default=None,
                         help="the eval_classification run of the README's classification "
                              "targets (experiments/standing.py)")
+    parser.add_argument("--registered", action="append", default=[],
+                        help="an experiments.registered workdir: its table in "
+                             "docs/registered.md")
     parser.add_argument("--drop", action="append", default=[],
                         help="a record to remove with its section, by name (docs/records)")
     parser.add_argument("--fresh", action="store_true",
@@ -393,7 +413,8 @@ def main(argv=None):
     pairs = [tuple(a.split(":")) for a in args.adaptation]
     if any(len(p) != 2 for p in pairs):
         parser.error(f"--adaptation takes BEFORE_RUN:AFTER_RUN, got {args.adaptation}")
-    asked = (args.runs or pairs or targets or args.headline or args.drop or args.classification)
+    asked = (args.runs or pairs or targets or args.headline or args.drop or args.classification
+             or args.registered)
     if args.check and asked:
         parser.error("--check takes no runs: it renders the committed records")
     if not (asked or args.check):
@@ -412,7 +433,8 @@ def main(argv=None):
                       f"({len(records.read_index()['sections'])} sections)")
                 return
             for path in publish(args.runs, args.headline, pairs, targets,
-                                args.classification, args.fresh, args.drop):
+                                args.classification, args.fresh, args.drop,
+                                registered=args.registered):
                 print(f"wrote {os.path.relpath(path, REPO)}")
         except (FileNotFoundError, ValueError) as e:
             cli.fail(e)

@@ -9,13 +9,15 @@ is published where::
     {"sections": [name, ...],       # docs/results.md, in this order
      "headline": name,              # the README's main-job table
      "targets": [name, ...],        # the README's targets table (experiments/standing.py)
-     "classification": name}        # the README's classification targets
+     "classification": name,        # the README's classification targets
+     "registered": [name, ...]}     # docs/registered.md (experiments.registered runs)
 
 ``experiments.publish`` writes records and renders every generated document from them;
 ``publish --check`` renders again and compares.
 """
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import shutil
@@ -29,7 +31,24 @@ INDEX = "published.json"
 ADAPTATION = "adaptation-"              # the name prefix of a before/after comparison
 COMPARISON = "adaptation.json"
 KEPT = (".csv", ".json")                # the top-level files of a workdir a record keeps
-EMPTY = {"sections": [], "headline": None, "targets": [], "classification": None}
+EMPTY = {"sections": [], "headline": None, "targets": [], "classification": None,
+         "registered": []}
+# Records of runs that are not ``experiments.evaluate`` tasks: the module whose
+# ``summary(folder)`` renders them.
+SUMMARIES = {"registered": "sphere_jax.eval.registered"}
+
+
+def summary(folder) -> str:
+    """A record's (or a workdir's) published markdown: its task's ``summary``."""
+    task = tasks.read_record(folder)["task"]
+    if task in SUMMARIES:
+        return importlib.import_module(SUMMARIES[task]).summary(folder)
+    render = tasks.task(task).summary
+    if render is None:
+        raise checks.InputError("folder", "a run of a task with a published summary "
+                                "(registration, lrf, classification, registered)",
+                                f"a {task} run ({folder})")
+    return render(folder)
 
 
 def folder(name, root=ROOT) -> str:
@@ -49,11 +68,7 @@ def save(run_dir, root=ROOT) -> str:
     """Copy the workdir's ``run.json`` and top-level CSV and JSON files into its record,
     replacing an older record of the same name; returns the name. Refused for a folder that
     is not an evaluation workdir or whose task has no published summary."""
-    record = tasks.read_record(run_dir)
-    if tasks.task(record["task"]).summary is None:
-        raise checks.InputError("run_dir", "a run of a task with a published summary "
-                                "(registration, lrf, classification)",
-                                f"a {record['task']} run")
+    summary(run_dir)                                  # refused before anything is copied
     name = name_of(run_dir)
     if name.startswith(ADAPTATION):
         raise checks.InputError("run_dir", f"a folder whose name does not start with "
@@ -93,8 +108,8 @@ def read_index(root=ROOT) -> dict:
 def write_index(index: dict, root=ROOT):
     """Write the index and remove the records it no longer names."""
     os.makedirs(root, exist_ok=True)
-    named = set(index["sections"]) | set(index["targets"]) | {index["headline"],
-                                                              index["classification"]}
+    named = (set(index["sections"]) | set(index["targets"]) | set(index["registered"])
+             | {index["headline"], index["classification"]})
     for name in os.listdir(root):
         if os.path.isdir(os.path.join(root, name)) and name not in named:
             shutil.rmtree(os.path.join(root, name))

@@ -9,12 +9,15 @@ truth; and fit the thresholds of that word on validation pairs.
 ``--data``: folders of 3DMatch scenes or Stanford ``.conf`` sets (comma-separated); ``--gt``:
 ground truth kept apart (3DLoMatch, LiDAR rescans). Each pair is registered by
 ``sphere_jax.register`` as a user calls it; rows go to ``WORKDIR/registered.csv`` (a rerun goes
-on), the table of right / wrong results by status to ``registered.md``. ``--fit`` also chooses
+on), its commands and thresholds to ``run.json``, the table of right / wrong results by
+status to ``registered.md`` (``experiments.publish --registered=WORKDIR`` publishes it in
+docs/registered.md). ``--fit`` also chooses
 the thresholds (no wrong result ``registered``, the most right ones kept) — on validation
 pairs only: settings are never chosen on evaluation scenes.
 """
 from __future__ import annotations
 
+import datetime
 import json
 import os
 
@@ -44,17 +47,27 @@ def main(argv=None):
     with cli.refusals():
         rows = lib.run(sets, methods, os.path.join(workdir, "registered.csv"))
     rows = [r for r in rows if r["method"] in methods]
+    # A rerun in the same workdir (other data, more methods) adds its rows: the record keeps
+    # every command that wrote them.
+    path = os.path.join(workdir, lib.RECORD)
+    before = {"commands": [], "methods": [], "data": []}
+    if os.path.isfile(path):
+        with open(path) as f:
+            before = json.load(f)
     command = cli.command("experiments.registered")
-    out = [f"# register's status against the truth\n\n`{command}`\n",
-           f"Thresholds: {pipeline.CONFIDENT_INLIERS} RANSAC inliers, {pipeline.RIVAL_MARGIN:g}× "
-           f"the best other transform's.\n", lib.table(rows)]
+    data = args.data + (f" (ground truth {args.gt})" if args.gt else "")
+    record = {"task": "registered", "date": datetime.date.today().isoformat(),
+              "commands": [c for c in before["commands"] if c != command] + [command],
+              "data": [d for d in before["data"] if d != data] + [data],
+              "methods": list(dict.fromkeys(before["methods"] + methods)),
+              "thresholds": {"min_inliers": pipeline.CONFIDENT_INLIERS,
+                             "margin": pipeline.RIVAL_MARGIN}}
+    files.atomic_write(path, json.dumps(record, indent=1).encode())
     if args.fit:
         n, m, kept = lib.fit(rows)
-        out += [f"\nFitted here: {n} inliers, {m:g}× the rival's; {kept:.1%} of the right "
-                f"results that succeeded stay registered.\n", lib.table(rows, n, m)]
-        files.atomic_write(os.path.join(workdir, "fit.json"), json.dumps(
+        files.atomic_write(os.path.join(workdir, lib.FIT), json.dumps(
             {"min_inliers": n, "margin": m, "right_kept": kept}, indent=1).encode())
-    text = "\n".join(out) + "\n"
+    text = lib.summary(workdir)
     files.atomic_write(os.path.join(workdir, "registered.md"), text.encode())
     print(text)
 

@@ -73,6 +73,7 @@ def _outputs(tmp_path, readme_text=README, weights=None) -> publish.Outputs:
     repo.mkdir(exist_ok=True)
     (repo / "README.md").write_text(readme_text)
     return publish.Outputs(results=str(repo / "results.md"), readme=str(repo / "README.md"),
+                           registered=str(repo / "registered.md"),
                            weights=str(weights or tmp_path / "weights"))
 
 
@@ -499,3 +500,28 @@ def test_the_frame_target_holds_lead_in_compass_frames_against_the_ground_truth(
         gt = _csv_run(tmp_path, f"gt{compass}", "results", reg,
                       {"lead_compass": f"1,{compass},300,1", "lead_gt": "1,0.50,400,1"})
         assert {t: (v, ok) for t, v, ok in standing.rows(*runs, gt)}[target] == expected
+
+
+def test_registered_runs_have_a_page_of_their_own(tmp_path):
+    """An experiments.registered workdir's record renders in docs/registered.md: its commands,
+    the statuses under the thresholds it ran with and, after --fit, under the fitted ones."""
+    from sphere_jax.eval import registered
+    run = tmp_path / "registered_x"
+    run.mkdir()
+    rows = [dict(set="s", i=0, j=k, method="shot", status=st, right=ok, inliers=n, rival=5,
+                 matches=100, fitness=0.5, rre_deg=1.0, rte=0.01, radius=0.3, seconds=1.0)
+            for k, (st, ok, n) in enumerate((("registered", 1, 60), ("registered", 0, 45),
+                                             ("unconfirmed", 1, 20), ("failed", 0, 0)))]
+    (run / "registered.csv").write_text(report.to_csv(rows, registered.FIELDS))
+    (run / "run.json").write_text(json.dumps({
+        "task": "registered", "date": "2026-01-01", "commands": ["reg a", "reg b"],
+        "data": ["/d"], "methods": ["shot"], "thresholds": {"min_inliers": 40, "margin": 2.0}}))
+    (run / "fit.json").write_text(json.dumps({"min_inliers": 50, "margin": 2.0,
+                                              "right_kept": 0.5}))
+    outputs = _publish(tmp_path, registered=[str(run)])
+    text = open(outputs.registered).read()
+    assert text.startswith(registered.PAGE) and "## /d" in text
+    assert "`reg a`\n\nthen\n\n`reg b`" in text
+    assert "| shot | 4 | 1 | 1 | 0 | 1 | 0 | 1 |" in text            # 40 inliers: 45 passes
+    assert "| shot | 4 | 1 | 1 | 0 | 0 | 1 | 1 |" in text            # fitted 50: it does not
+    assert records.read_index(str(tmp_path / "records"))["registered"] == ["registered_x"]
