@@ -12,10 +12,13 @@ against s2fft's at B = 8-32, with their agreement; needs ``pip install -e '.[ben
 (the shipped Compass and LEAD stage by stage: ms, GFLOP and share of the peak; ``--only``),
 ``keypoints`` (register on the 27 redkitchen pairs with a quarter, half and all the keypoints,
 and what describing them share by share returns; ``--only=METHOD``, default lead_pn).
-``--json`` prints one JSON list of the records instead of the table.
+``--json`` prints one JSON list of the records instead of the table; ``--record=DIR`` also
+writes them with the command, machine and date to ``DIR/bench.json``, which ``python -m
+experiments.publish --bench=DIR`` publishes in docs/performance.md.
 """
 from __future__ import annotations
 
+import datetime
 import importlib
 import json
 import os
@@ -24,12 +27,14 @@ from absl import app, flags
 
 from experiments import cli
 from experiments.benchmarks import SUITES, common
-from sphere_jax import checks
+from sphere_jax import checks, files
 
 flags.DEFINE_enum("suite", "layers", SUITES, "which benchmark suite to run")
 flags.DEFINE_string("sizes", "small,paper", "models/train suites: config sizes, comma-separated")
 flags.DEFINE_integer("keypoints", 5000, "models/registration suites: keypoints per fragment")
 flags.DEFINE_bool("json", False, "print one JSON list of records instead of the table")
+flags.DEFINE_string("record", None, "also write DIR/bench.json (command, machine, date, "
+                    "records): what `experiments.publish --bench=DIR` publishes")
 flags.DEFINE_integer("batch", 8, "layers suite: batch size")
 flags.DEFINE_integer("repeats", 5, "timed runs per measurement (median)")
 flags.DEFINE_string("only", None, "layers/models suites: keep the layers or configs whose name "
@@ -46,6 +51,12 @@ def main(argv):
     repeats = min(f.repeats, 3) if f.suite in ("models", "train") else f.repeats
     records = suite.run(batch=f.batch, repeats=repeats, only=f.only, keypoints=f.keypoints,
                         sizes=tuple(f.sizes.split(",")))
+    if f.record:
+        os.makedirs(f.record, exist_ok=True)
+        files.atomic_write(os.path.join(f.record, "bench.json"), json.dumps({
+            "suite": f.suite, "command": cli.command("experiments.bench"),
+            "machine": common.machine_line(), "date": datetime.date.today().isoformat(),
+            "records": records}, indent=1) + "\n")
     if f.json:
         print(json.dumps(records))
     else:

@@ -14,11 +14,12 @@ older record of that name, and its section of ``docs/results.md`` (one table per
 by metrics: the task's ``summary``). ``--headline`` (a registration run) fills the README's
 ``headline`` block; ``--targets`` its ``targets`` block (:mod:`experiments.standing`),
 ``--classification`` its ``classification-targets`` block; ``--registered`` (an
-``experiments.registered`` workdir) adds its table to docs/registered.md. ``--adaptation``
-compares a run
-with the shipped bundles and the same run with adapted ones (``experiments.adapt``, or an LRF
-run's own ``adapt_steps``), method by method, and records the comparison. ``--drop`` removes a
-record and its section, ``--fresh`` keeps only the runs given.
+``experiments.registered`` workdir) adds its table to docs/registered.md; ``--bench`` (an
+``experiments.bench --record`` folder) fills the suite's block of docs/performance.md.
+``--adaptation`` compares a run with the shipped bundles and the same run with adapted ones
+(``experiments.adapt``, or an LRF run's own ``adapt_steps``), method by method, and records
+the comparison. ``--drop`` removes a record and its section, ``--fresh`` keeps only the runs
+given.
 
 Rendered from the records: docs/results.md, the README's blocks, the evaluations on the model
 cards of the bundles in the package (a record's bundle fingerprint names the bundle it
@@ -50,6 +51,7 @@ class Outputs(NamedTuple):
     results: str = os.path.join(REPO, "docs", "results.md")
     readme: str = os.path.join(REPO, "README.md")
     registered: str = os.path.join(REPO, "docs", "registered.md")
+    performance: str = os.path.join(REPO, "docs", "performance.md")
     weights: str = paths.weights_root()        # each bundle's card, and the index
 
 
@@ -224,12 +226,12 @@ def comparison_section(c: dict) -> str:
             f"{c['after']['date']}.\n\n" + "\n".join(out) + "\n")
 
 
-def replace_block(text, name, content) -> str:
-    """``text`` (a README) with its generated block ``name`` (between its begin and end
+def replace_block(text, name, content, what="the README") -> str:
+    """``text`` (the README's) with its generated block ``name`` (between its begin and end
     markers) holding ``content``."""
     begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
     if begin not in text or end not in text:
-        raise ValueError(f"the README has no {begin} ... {end} block")
+        raise ValueError(f"{what} has no {begin} ... {end} block")
     return re.sub(re.escape(begin) + ".*?" + re.escape(end),
                   lambda _: f"{begin}\n{content}\n{end}", text, flags=re.S)
 
@@ -249,6 +251,14 @@ def contents(sections):
         seen[anchor] = n + 1
         items.append(f"- [{title}](#{anchor}{f'-{n}' if n else ''})")
     return items
+
+
+def bench_block(bench: dict) -> str:
+    """A benchmark record as its table and the line that says where it ran."""
+    from experiments.benchmarks import common
+    return (f"{common.format_table(bench['records'])}\n\n`{bench['command']}` on "
+            f"{bench['machine']}, {bench['date']} (record `docs/records/bench-{bench['suite']}`)"
+            f".")
 
 
 def bundles_in(weights_root) -> dict:
@@ -306,6 +316,12 @@ def render(root=records.ROOT, outputs=Outputs()) -> dict:
             f"record {index['classification']} (its command, data and bundles: "
             f"docs/results.md).")
     out[outputs.readme] = readme
+    if index["bench"]:
+        text = open(outputs.performance).read()
+        for name in index["bench"]:
+            text = replace_block(text, name, bench_block(records.read_bench(name, root)),
+                                 what=outputs.performance)
+        out[outputs.performance] = text
     if index["registered"]:
         from sphere_jax.eval import registered
         parts = [registered.PAGE]
@@ -337,7 +353,7 @@ def differences(rendered: dict) -> list[str]:
 
 def publish(run_dirs=(), headline=None, adaptations=(), targets=(), classification=None,
             fresh=False, drop=(), root=records.ROOT, outputs=Outputs(),
-            registered=()) -> list[str]:
+            registered=(), bench=()) -> list[str]:
     """Record the given runs (and comparisons ``(before_dir, after_dir)``), update the index
     — a run published again keeps its place, a new one goes last (a comparison after the
     other comparisons), ``drop`` names records to remove, ``fresh`` keeps only these — and
@@ -356,6 +372,9 @@ def publish(run_dirs=(), headline=None, adaptations=(), targets=(), classificati
         index["targets"] = [records.save(d, root) for d in targets]
     if classification:
         index["classification"] = records.save(classification, root)
+    for d in bench:
+        name = records.save_bench(d, root)
+        index["bench"] = [n for n in index["bench"] if n != name] + [name]
     for d in registered:             # docs/registered.md, a page of its own
         name = records.save(d, root)
         index["registered"] = [n for n in index["registered"] if n != name] + [name]
@@ -396,6 +415,9 @@ def main(argv=None):
     parser.add_argument("--registered", action="append", default=[],
                         help="an experiments.registered workdir: its table in "
                              "docs/registered.md")
+    parser.add_argument("--bench", action="append", default=[],
+                        help="an experiments.bench --record folder: its table in its block of "
+                             "docs/performance.md")
     parser.add_argument("--drop", action="append", default=[],
                         help="a record to remove with its section, by name (docs/records)")
     parser.add_argument("--fresh", action="store_true",
@@ -414,7 +436,7 @@ def main(argv=None):
     if any(len(p) != 2 for p in pairs):
         parser.error(f"--adaptation takes BEFORE_RUN:AFTER_RUN, got {args.adaptation}")
     asked = (args.runs or pairs or targets or args.headline or args.drop or args.classification
-             or args.registered)
+             or args.registered or args.bench)
     if args.check and asked:
         parser.error("--check takes no runs: it renders the committed records")
     if not (asked or args.check):
@@ -434,7 +456,7 @@ def main(argv=None):
                 return
             for path in publish(args.runs, args.headline, pairs, targets,
                                 args.classification, args.fresh, args.drop,
-                                registered=args.registered):
+                                registered=args.registered, bench=args.bench):
                 print(f"wrote {os.path.relpath(path, REPO)}")
         except (FileNotFoundError, ValueError) as e:
             cli.fail(e)

@@ -10,7 +10,8 @@ is published where::
      "headline": name,              # the README's main-job table
      "targets": [name, ...],        # the README's targets table (experiments/standing.py)
      "classification": name,        # the README's classification targets
-     "registered": [name, ...]}     # docs/registered.md (experiments.registered runs)
+     "registered": [name, ...],     # docs/registered.md (experiments.registered runs)
+     "bench": [name, ...]}          # docs/performance.md's blocks (experiments.bench --record)
 
 ``experiments.publish`` writes records and renders every generated document from them;
 ``publish --check`` renders again and compares.
@@ -32,7 +33,8 @@ ADAPTATION = "adaptation-"              # the name prefix of a before/after comp
 COMPARISON = "adaptation.json"
 KEPT = (".csv", ".json")                # the top-level files of a workdir a record keeps
 EMPTY = {"sections": [], "headline": None, "targets": [], "classification": None,
-         "registered": []}
+         "registered": [], "bench": []}
+BENCH = "bench.json"                    # a benchmark's record: experiments.bench --record
 # Records of runs that are not ``experiments.evaluate`` tasks: the module whose
 # ``summary(folder)`` renders them.
 SUMMARIES = {"registered": "sphere_jax.eval.registered"}
@@ -83,6 +85,25 @@ def save(run_dir, root=ROOT) -> str:
     return name
 
 
+def save_bench(run_dir, root=ROOT) -> str:
+    """Copy ``run_dir/bench.json`` (``experiments.bench --record=DIR``) to the record
+    ``bench-<suite>``, replacing the suite's older one; returns its name."""
+    path = os.path.join(str(run_dir), BENCH)
+    if not os.path.isfile(path):
+        raise checks.MissingError(f"{run_dir} has no {BENCH}: run python -m experiments.bench "
+                                  f"--suite=NAME --record={run_dir}")
+    with open(path) as f:
+        name = f"bench-{json.load(f)['suite']}"
+    os.makedirs(os.path.join(root, name), exist_ok=True)
+    shutil.copyfile(path, os.path.join(root, name, BENCH))
+    return name
+
+
+def read_bench(name, root=ROOT) -> dict:
+    with open(os.path.join(folder(name, root), BENCH)) as f:
+        return json.load(f)
+
+
 def save_comparison(name, comparison: dict, root=ROOT) -> str:
     """Write a before/after comparison's record ``<ADAPTATION><name>``; returns its name."""
     key = f"{ADAPTATION}{name}"
@@ -109,7 +130,7 @@ def write_index(index: dict, root=ROOT):
     """Write the index and remove the records it no longer names."""
     os.makedirs(root, exist_ok=True)
     named = (set(index["sections"]) | set(index["targets"]) | set(index["registered"])
-             | {index["headline"], index["classification"]})
+             | set(index["bench"]) | {index["headline"], index["classification"]})
     for name in os.listdir(root):
         if os.path.isdir(os.path.join(root, name)) and name not in named:
             shutil.rmtree(os.path.join(root, name))

@@ -74,6 +74,7 @@ def _outputs(tmp_path, readme_text=README, weights=None) -> publish.Outputs:
     (repo / "README.md").write_text(readme_text)
     return publish.Outputs(results=str(repo / "results.md"), readme=str(repo / "README.md"),
                            registered=str(repo / "registered.md"),
+                           performance=str(repo / "performance.md"),
                            weights=str(weights or tmp_path / "weights"))
 
 
@@ -525,3 +526,23 @@ def test_registered_runs_have_a_page_of_their_own(tmp_path):
     assert "| shot | 4 | 1 | 1 | 0 | 1 | 0 | 1 |" in text            # 40 inliers: 45 passes
     assert "| shot | 4 | 1 | 1 | 0 | 0 | 1 | 1 |" in text            # fitted 50: it does not
     assert records.read_index(str(tmp_path / "records"))["registered"] == ["registered_x"]
+
+
+def test_a_benchmark_record_fills_its_block_of_the_performance_page(tmp_path):
+    """``experiments.bench --record=DIR`` writes bench.json; publishing it fills the suite's
+    block of docs/performance.md with its table and where it ran, the prose around it kept."""
+    run = tmp_path / "b"
+    run.mkdir()
+    (run / "bench.json").write_text(json.dumps({
+        "suite": "describe", "command": "python -m experiments.bench --suite=describe",
+        "machine": "x86_64, 2 CPU cores", "date": "2026-01-01",
+        "records": [{"method": "lead", "ms_per_keypoint": 1.5}]}))
+    outputs = _outputs(tmp_path)
+    with open(outputs.performance, "w") as f:
+        f.write("above\n<!-- bench-describe:begin -->\nold\n<!-- bench-describe:end -->\nbelow\n")
+    _publish(tmp_path, bench=[str(run)], outputs=outputs)
+    text = open(outputs.performance).read()
+    assert text.startswith("above\n") and text.endswith("below\n") and "old" not in text
+    assert "| lead   | 1.5             |" in text
+    assert "`python -m experiments.bench --suite=describe` on x86_64, 2 CPU cores, 2026-01-01" \
+        in text
