@@ -102,14 +102,16 @@ def network(kind):
     return build
 
 
-def network_in_frames_of(kind, frame_kind):
+def network_in_frames_of(kind, frame_kind, whitening=None):
     """The builder of descriptor bundle ``bundles[kind]`` turned to the frames of orienting
-    bundle ``bundles[frame_kind]``, whitened by the descriptor bundle's whitening fitted in
-    those frames (named ``frame_kind``) where it has one."""
+    bundle ``bundles[frame_kind]``, whitened by the descriptor bundle's whitening
+    ``whitening`` (default: the one fitted in those frames, named ``frame_kind``) where it
+    has one."""
     def build(radius, bundles, chunk=None, **_):
         model = inference.cached_bundle(bundles[kind])
         lrf = inference.cached_bundle(bundles[frame_kind])
-        whiten = frame_kind if frame_kind in model.whitenings else None
+        source = whitening or frame_kind
+        whiten = source if source in model.whitenings else None
 
         def describe_all(fs):
             clouds = [(f.points, f.keypoints) for f in fs]
@@ -130,14 +132,19 @@ def shot_in_one_frame(radius, bundles=None, chunk=None):
     return describe
 
 
-def network_in_one_frame(kind):
+def network_in_one_frame(kind, whiten=None):
+    """The builder of ``describe(fragment, rot_3x3)``: ``kind``'s descriptors turned to one
+    frame for every keypoint (the ground truth's, for a diagnostic), whitened by the bundle's
+    ``whiten`` whitening where it has one (so that it differs from a method in learned frames
+    by its frames alone)."""
     def build(radius, bundles, chunk=None):
         model = inference.cached_bundle(bundles[kind])
+        white = whiten if whiten in model.whitenings else None
 
         def describe(f, rot_3x3):
             return masked(model.describe(f.points, f.keypoints, radius=radius, chunk=chunk,
                                          frames=one_frame(rot_3x3, len(f.keypoints)),
-                                         on_invalid="mask"), np.nan)
+                                         on_invalid="mask", whiten=white), np.nan)
         return describe
     return build
 

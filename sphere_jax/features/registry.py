@@ -21,6 +21,7 @@ name                     key               what
 ``usc``                  ``usc``           Unique Shape Context, 1960-d, in the SHOT LRF
 ``lead@flare``           ``lead``          LEAD's SO(3) map turned to FLARE's frame
 ``lead@compass``         ``lead_compass``  ... turned to Compass's frame
+``lead@lrf_net``         ``lead_lrfnet``   ... turned to FLARE's ẑ and a learned x̂
 ``lead_pn@flare``        ``lead_pn``       LEAD-PN on FLARE-oriented patches
 ``sound``                ``sound``         SOUND, self-oriented
 ``lead@compass+modes``   ``lead_modes``    ... under Compass's 3 strongest frames
@@ -78,6 +79,9 @@ METHODS = (
     Method("lead@flare", "lead", ("lead",), "LEAD (FLARE)", build=b.network("lead")),
     Method("lead@compass", "lead_compass", ("lead", "compass"), "LEAD (Compass)",
            build=b.network_in_frames_of("lead", "compass")),
+    # FLARE's ẑ and a learned x̂: LEAD's whitening of FLARE frames.
+    Method("lead@lrf_net", "lead_lrfnet", ("lead", "lrf_net"), "LEAD (learned x̂)",
+           build=b.network_in_frames_of("lead", "lrf_net", whitening="default")),
     Method("lead_pn@flare", "lead_pn", ("lead_pn",), "LEAD-PN (FLARE)",
            build=b.network("lead_pn")),
     Method("sound", "sound", ("sound",), "SOUND", build=b.network("sound")),
@@ -88,8 +92,9 @@ METHODS = (
            "voted", build=voted.lead_vote),
     Method("shot+vote", "shot_vote", (), "SHOT + vote", "voted", ("shot@shot+vote",),
            build=voted.shot_vote),
+    # Whitened as lead@compass is: the two differ by their frames alone.
     Method("lead@gt", "lead_gt", ("lead",), "LEAD (ground-truth frames)", "diagnostic",
-           build=b.network_in_one_frame("lead")),
+           build=b.network_in_one_frame("lead", whiten="compass")),
     Method("shot@gt", "shot_gt", (), "SHOT (ground-truth frames)", "diagnostic",
            build=b.shot_in_one_frame),
 )
@@ -101,6 +106,7 @@ LRFS = {lrf.key: lrf for lrf in (
     Lrf("3dsn", (), b.on_neighbourhoods(lrfs.threedsn_lrf)),
     Lrf("gframes", (), b.on_neighbourhoods(lrfs.gframes_lrf, with_normals=True)),
     Lrf("compass", ("compass",), b.network_lrf("compass")),
+    Lrf("lrf_net", ("lrf_net",), b.network_lrf("lrf_net")),
     Lrf("sound", ("sound",), b.network_lrf("sound")),
 )}
 

@@ -13,7 +13,7 @@ radius) and compute their spherical signals themselves, so that the inference AP
 training step share one code path.
 """
 from sphere_jax import checks
-from sphere_jax.models import classify, compass, lead, lead_pn, sound
+from sphere_jax.models import classify, compass, lead, lead_pn, lrf_net, sound
 from sphere_jax.models.classify import ClassifyOut, PointNetClassifier
 from sphere_jax.models.compass import Compass, CompassOut
 from sphere_jax.models.lead import Lead, LeadOut
@@ -22,7 +22,8 @@ from sphere_jax.models.pointnet import PointNetEncoder
 from sphere_jax.models.sound import Sound, SoundOut
 from sphere_jax.models.spec import ModelSpec
 
-SPECS = {s.kind: s for s in (compass.SPEC, lead.SPEC, lead_pn.SPEC, sound.SPEC, classify.SPEC)}
+SPECS = {s.kind: s for s in (compass.SPEC, lead.SPEC, lead_pn.SPEC, sound.SPEC, classify.SPEC,
+                             lrf_net.SPEC)}
 
 
 def spec(kind: str) -> ModelSpec:

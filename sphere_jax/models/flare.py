@@ -9,6 +9,22 @@ import jax
 import jax.numpy as jnp
 
 
+def support_normal(patch_Nx3, within=0.5):
+    """FLARE's ẑ of a patch in local coordinates (keypoint at 0): the normal of the plane
+    fitted (PCA) to the points within ``within`` of the keypoint (all points where fewer than
+    3 are), turned away from the patch's mass. ``[3]``; equivariant: a turned patch turns it."""
+    p = jnp.asarray(patch_Nx3, jnp.float32)
+    r = jnp.linalg.norm(p, axis=-1)
+    inner = (r <= within) & (r > 0)
+    inner = jnp.where(jnp.sum(inner) >= 3, inner, r > 0)       # too few: fit to all points
+    w = inner.astype(p.dtype)
+    mean = jnp.sum(w[:, None] * p, 0) / jnp.sum(w)
+    d = (p - mean) * w[:, None]
+    _, vecs = jnp.linalg.eigh(d.T @ d)
+    z = vecs[:, 0]
+    return jnp.where(jnp.sum(p @ z) > 0, -z, z)
+
+
 def flare(patch_Nx3, radius=1.0, normal_radius=0.5, margin=0.85):
     """FLARE (Petrelli & Di Stefano 2012) of a patch in local coordinates (keypoint at 0).
 
@@ -19,14 +35,7 @@ def flare(patch_Nx3, radius=1.0, normal_radius=0.5, margin=0.85):
     """
     p = jnp.asarray(patch_Nx3, jnp.float32)
     r = jnp.linalg.norm(p, axis=-1)
-    inner = (r <= normal_radius * radius) & (r > 0)
-    inner = jnp.where(jnp.sum(inner) >= 3, inner, r > 0)       # too few: fit to all points
-    w = inner.astype(p.dtype)
-    mean = jnp.sum(w[:, None] * p, 0) / jnp.sum(w)
-    d = (p - mean) * w[:, None]
-    _, vecs = jnp.linalg.eigh(d.T @ d)
-    z = vecs[:, 0]
-    z = jnp.where(jnp.sum(p @ z) > 0, -z, z)
+    z = support_normal(p, normal_radius * radius)
     height = p @ z
     periphery = r > margin * radius
     periphery = jnp.where(jnp.any(periphery), periphery, r > 0)

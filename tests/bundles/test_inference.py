@@ -44,7 +44,7 @@ def test_bundle_api_shapes_chunks_and_errors(tmp_path):
         kind = inference.load_bundle(name).kind
         assert kind == shipped.SHIPPED[name].kind
     lead_config = lead.get_config("tiny")
-    with pytest.raises(ValueError, match="of kind compass, sound to orient"):
+    with pytest.raises(ValueError, match="of kind compass, sound, lrf_net to orient"):
         inference.Bundle(models.build(lead_config), {}, lead_config).orient(cloud, kp)
 
 

@@ -46,7 +46,7 @@ def test_shipped_bundles_state_what_they_were_trained_on():
 
 def test_unknown_model_kind_names_the_kinds():
     with pytest.raises(ValueError, match="config.model must be one of compass, lead, lead_pn, "
-                                         "sound, classify; got 'pointnet2'"):
+                                         "sound, classify, lrf_net; got 'pointnet2'"):
         models.spec("pointnet2")
 
 

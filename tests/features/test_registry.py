@@ -25,7 +25,7 @@ def test_library_lists_derive_from_the_registry():
     learned = registry.keys("descriptor", learned=True)
     hand_crafted = registry.keys("descriptor", learned=False)
     assert set(learned + hand_crafted) == set(registry.keys("descriptor"))
-    assert learned == ("lead", "lead_compass", "lead_pn", "sound", "lead_modes")
+    assert learned == ("lead", "lead_compass", "lead_lrfnet", "lead_pn", "sound", "lead_modes")
     assert registry.keys("voted") == ("lead_vote", "shot_vote")
     assert registry.needs("lead_compass") == ("lead", "compass")
     assert registry.needs("compass") == ("compass",)                # an LRF's bundle
