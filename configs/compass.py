@@ -1,7 +1,7 @@
 """Compass: a self-supervised learned local reference frame (thesis 3.1).
 
     python -m experiments.train --config=compass:small --workdir=runs/compass_small
-    python -m experiments.train --config=compass:mid --workdir=runs/compass_mid   # shipped
+    python -m experiments.train --config=compass:mid --workdir=runs/compass_mid   # compass_rooms
 
 'mid' trains on the synthetic rooms with open3d's fused RGB-D frames as a fifth of each batch.
 

@@ -3,7 +3,7 @@
 ScanNet room, a SUN RGB-D frame) as three of every four batches' scans by weight and open3d's
 fused RGB-D frames as the fourth; no synthetic room.
 
-    python -m experiments.train --config=compass_real:mid --workdir=runs/compass_real_mid
+    python -m experiments.train --config=compass_real:mid --workdir=runs/compass_real_mid  # compass
 
 Measures what real scans teach a learned frame that the generator's rooms do not: chosen over
 rooms only and rooms + real scans on the validation pairs of ``make_data --validation``

@@ -46,6 +46,8 @@ def compute():
     kw = dict(radius=RADIUS, workers=1)
     compass = sphere_jax.load_bundle(bundle("compass"))
     out["compass_orient"] = compass.orient(pts, kp, **kw)
+    for name in ("compass_rooms", "lrf_net"):             # the other shipped frames
+        out[f"{name}_orient"] = sphere_jax.load_bundle(bundle(name)).orient(pts, kp, **kw)
     lead = sphere_jax.load_bundle(bundle("lead"))
     lead_pn = sphere_jax.load_bundle(bundle("lead_pn"))
     # The networks' own outputs, and those outputs whitened as describe() gives them.
