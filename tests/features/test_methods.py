@@ -63,10 +63,11 @@ def test_lead_gt_gives_corresponding_patches_one_pose(moved_pair):
     # The floor: the same scan described from another random draw of its patches.
     eye = np.broadcast_to(np.eye(3, dtype=np.float32), (len(f.keypoints), 3, 3))
     lead = inference.cached_bundle(BUNDLES["lead"])
+    white = "compass" if "compass" in lead.whitenings else None     # as lead_gt whitens
     redrawn, _ = lead.describe(f.points, f.keypoints, radius=0.30, frames=eye, seed=1,
-                               on_invalid="mask")
+                               on_invalid="mask", whiten=white)
     unturned, _ = lead.describe(g.points, g.keypoints, radius=0.30, frames=eye,
-                                on_invalid="mask")
+                                on_invalid="mask", whiten=white)
     _, wrong = diag.describe_pair(f, g, np.linalg.inv(t))
     floor, turned = _relative(redrawn[rows], d_f[rows]), _relative(d_g[rows], d_f[rows])
     unturned, wrong = _relative(unturned[rows], d_f[rows]), _relative(wrong[rows], d_f[rows])
@@ -74,10 +75,11 @@ def test_lead_gt_gives_corresponding_patches_one_pose(moved_pair):
           f"turned the wrong way {wrong:.3f}")
     # Turned keeps the network's own equivariance error on top of the redraw (the patch
     # signal is sampled on a grid that does not turn with the patch): a few per cent, which
-    # does not shrink with the floor (measured: redrawn 0.018 / turned 0.042 on the
-    # redkitchen scan, 0.009 / 0.052 on the denser embedded room), against a full rotation's
-    # 1.3-1.6 unturned or turned the wrong way.
-    assert floor < turned < 0.08 and min(unturned, wrong) > 15 * turned
+    # does not shrink with the floor, against a full rotation's 1.3-1.6 unturned or turned the
+    # wrong way. Whitened as lead_gt is (the weak directions weigh as much as the strong),
+    # measured on the redkitchen scan: redrawn 0.045, turned 0.091, unturned 1.32, wrong 1.34
+    # (unwhitened: 0.018 / 0.042).
+    assert floor < turned < 0.12 and min(unturned, wrong) > 10 * turned
 
 
 def test_ground_truth_diagnostics_are_refused_outside_the_pair_benchmark():
