@@ -254,11 +254,20 @@ def contents(sections):
 
 
 def bench_block(bench: dict) -> str:
-    """A benchmark record as its table and the line that says where it ran."""
+    """A benchmark record as its table — a field that holds a dict (register's stages) as a
+    table of its own, one line per record — and the line that says where it ran."""
     from experiments.benchmarks import common
-    return (f"{common.format_table(bench['records'])}\n\n`{bench['command']}` on "
-            f"{bench['machine']}, {bench['date']} (record `docs/records/bench-{bench['suite']}`)"
-            f".")
+    rows = [{k: "" if v is None else v for k, v in r.items()} for r in bench["records"]]
+    nested = [c for c in dict.fromkeys(c for r in rows for c in r)
+              if any(isinstance(r.get(c), dict) for r in rows)]
+    flat = [{k: v for k, v in r.items() if k not in nested} for r in rows]
+    parts = [common.format_table(flat)]
+    label = next(iter(flat[0])) if flat and flat[0] else None
+    for c in nested:
+        parts.append(f"`{c}`:\n\n" + common.format_table(
+            [{label: r.get(label), **(r.get(c) or {})} for r in rows if r.get(c)]))
+    return ("\n\n".join(parts) + f"\n\n`{bench['command']}` on {bench['machine']}, "
+            f"{bench['date']} (record `docs/records/bench-{bench['suite']}`).")
 
 
 def bundles_in(weights_root) -> dict:

@@ -536,13 +536,15 @@ def test_a_benchmark_record_fills_its_block_of_the_performance_page(tmp_path):
     (run / "bench.json").write_text(json.dumps({
         "suite": "describe", "command": "python -m experiments.bench --suite=describe",
         "machine": "x86_64, 2 CPU cores", "date": "2026-01-01",
-        "records": [{"method": "lead", "ms_per_keypoint": 1.5}]}))
+        "records": [{"method": "lead", "ms_per_keypoint": 1.5, "gflop": None,
+                     "register_stages": {"ICP": 0.25}}]}))
     outputs = _outputs(tmp_path)
     with open(outputs.performance, "w") as f:
         f.write("above\n<!-- bench-describe:begin -->\nold\n<!-- bench-describe:end -->\nbelow\n")
     _publish(tmp_path, bench=[str(run)], outputs=outputs)
     text = open(outputs.performance).read()
     assert text.startswith("above\n") and text.endswith("below\n") and "old" not in text
-    assert "| lead   | 1.5             |" in text
+    assert "| lead   | 1.5             |       |" in text               # None: empty
+    assert "`register_stages`:\n\n| method | ICP  |" in text and "| lead   | 0.25 |" in text
     assert "`python -m experiments.bench --suite=describe` on x86_64, 2 CPU cores, 2026-01-01" \
         in text
