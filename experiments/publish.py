@@ -308,7 +308,7 @@ def render(root=records.ROOT, outputs=Outputs()) -> dict:
     for name, text in sections:
         parts += [f"<!-- section: {name} -->", text.strip(), ""]
     out = {outputs.results: "\n".join(parts).rstrip() + "\n"}
-    readme = open(outputs.readme).read()
+    readme = on_disk(outputs.readme)
     if index["headline"]:
         record = tasks.read_record(folder(index["headline"]))
         readme = replace_block(readme, "headline", f"{headline_table(folder(index['headline']))}"
@@ -326,7 +326,7 @@ def render(root=records.ROOT, outputs=Outputs()) -> dict:
             f"docs/results.md).")
     out[outputs.readme] = readme
     if index["bench"]:
-        text = open(outputs.performance).read()
+        text = on_disk(outputs.performance)
         for name in index["bench"]:
             text = replace_block(text, name, bench_block(records.read_bench(name, root)),
                                  what=outputs.performance)
@@ -350,13 +350,16 @@ def render(root=records.ROOT, outputs=Outputs()) -> dict:
     return out
 
 
+def on_disk(path) -> str | None:
+    """A file's text; None when it is absent."""
+    if not os.path.isfile(path):
+        return None
+    with open(path) as f:
+        return f.read()
+
+
 def differences(rendered: dict) -> list[str]:
     """The paths of ``rendered`` whose file on disk differs (or is absent)."""
-    def on_disk(path):
-        if not os.path.isfile(path):
-            return None
-        with open(path) as f:
-            return f.read()
     return [p for p, text in rendered.items() if on_disk(p) != text]
 
 

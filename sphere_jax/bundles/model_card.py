@@ -114,11 +114,7 @@ def render(bundle_dir):
 
 
 def read_evaluations(bundle_dir) -> dict:
-    path = os.path.join(str(bundle_dir), EVALUATIONS)
-    if not os.path.isfile(path):
-        return {}
-    with open(path) as f:
-        return json.load(f)
+    return store.read_json(bundle_dir, EVALUATIONS)
 
 
 def text(bundle_dir, evaluations=None) -> str:

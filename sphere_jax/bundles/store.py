@@ -43,6 +43,16 @@ def write_json(path, text):
     files.atomic_write(path, text)
 
 
+def read_json(bundle_dir, name) -> dict:
+    """The bundle's JSON file ``name`` (``evaluations.json``, ``whitening.json``); ``{}`` when
+    the bundle has none."""
+    path = os.path.join(str(bundle_dir), name)
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
+
+
 def save(path, config, variables, training_data=None):
     """Write a bundle folder ``path`` (created if missing); returns its absolute path.
     ``variables``: ``{'params', 'batch_stats'}``; ``training_data``: a JSON-able statement of

@@ -167,8 +167,4 @@ def load(bundle_dir) -> dict:
 
 def read_statement(bundle_dir) -> dict:
     """``whitening.json``: per source, the scans, keypoints and frames it was fitted on."""
-    path = os.path.join(str(bundle_dir), STATEMENT)
-    if not os.path.isfile(path):
-        return {}
-    with open(path) as f:
-        return json.load(f)
+    return store.read_json(bundle_dir, STATEMENT)

@@ -208,8 +208,8 @@ def write(workdir, rows, frame_rows, trained, n_test, rule):
                            report.to_csv(frame_rows, ("method",) + FRAME_COLUMNS))
     files.atomic_write(os.path.join(workdir, FACTS),
                        json.dumps({"test_shapes": n_test, "rule": rule}, indent=1))
-    report.write(workdir, "classification", rows, ("method", "split", "accuracy", "thesis"),
-                 "")
+    files.atomic_write(os.path.join(workdir, "classification.csv"),
+                       report.to_csv(rows, ("method", "split", "accuracy", "thesis")))
     md = summary(workdir)
     files.atomic_write(os.path.join(workdir, "classification.md"), md)
     return md

@@ -280,10 +280,7 @@ def summary(folder) -> str:
     docs/records): one table of methods by :data:`SUMMARY`'s metrics, and the pair votes'
     accuracy where voted methods ran."""
     config = tasks.read_record(folder)["config"]
-    rows = report.read_rows(folder, "results")
-    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean"))
-    means = report.read_means(folder, "results")
-    pairs = max(int(float(r["pairs"])) for r in means.values())
+    scenes, means, pairs = report.means_of(folder, "results")
     out = [f"# Registration benchmark{' (rotated)' if config.get('rotate') else ''}", "",
            report.means_table(means, SUMMARY), "",
            f"Means over {pairs} pairs ({', '.join(scenes)}). FMR: share of pairs with an "

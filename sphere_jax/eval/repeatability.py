@@ -214,10 +214,7 @@ def summary(folder) -> str:
     """A run's published markdown from its files (the workdir or its record in
     docs/records): one table of methods by :data:`SUMMARY`'s metrics."""
     config = tasks.read_record(folder)["config"]
-    rows = report.read_rows(folder, "lrf_results")
-    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean"))
-    means = report.read_means(folder, "lrf_results")
-    pairs = max(int(float(r["pairs"])) for r in means.values())
+    scenes, means, pairs = report.means_of(folder, "lrf_results")
     variant = " (rotated)" if config.get("rotate") else ""
     if config.get("adapt_steps"):
         variant += f"{ADAPTED} ({config['adapt_steps']} steps, no ground truth read)"

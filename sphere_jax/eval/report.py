@@ -125,6 +125,15 @@ def read_rows(workdir, stem) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+def means_of(folder, stem):
+    """``(scenes, {method: mean row}, pairs)`` of ``<stem>.csv`` in a run's folder: what a
+    published summary states above and below its table."""
+    rows = read_rows(folder, stem)
+    scenes = list(dict.fromkeys(r["scene"] for r in rows if r["scene"] != "mean"))
+    means = read_means(folder, stem)
+    return scenes, means, max(int(float(r["pairs"])) for r in means.values())
+
+
 def number(text) -> float | None:
     """A CSV cell as a float; None for an empty, unparsable or NaN cell (not recorded)."""
     try:
